@@ -1,0 +1,165 @@
+"""Settings for Mission Dispatch.
+
+Every deployment-specific value comes from an environment variable (documented in README.md) with a
+default that works against the services of a local development machine.
+"""
+
+import os
+from pathlib import Path
+
+BASE_DIR = Path(__file__).resolve().parent.parent
+
+
+def env_str(name: str, default: str) -> str:
+    return os.environ.get(name, default)
+
+
+def env_int(name: str, default: int) -> int:
+    return int(os.environ.get(name, default))
+
+
+def env_float(name: str, default: float) -> float:
+    return float(os.environ.get(name, default))
+
+
+def env_bool(name: str, default: bool) -> bool:
+    value = os.environ.get(name)
+    if value is None:
+        return default
+    return value.strip().lower() in {"1", "true", "yes", "on"}
+
+
+SECRET_KEY = env_str("FLEET_SECRET_KEY", "insecure-development-key-change-me-in-production")
+DEBUG = env_bool("FLEET_DEBUG", False)
+ALLOWED_HOSTS = env_str("FLEET_ALLOWED_HOSTS", "*").split(",")
+
+INSTALLED_APPS = [
+    "django.contrib.admin",
+    "django.contrib.auth",
+    "django.contrib.contenttypes",
+    "django.contrib.sessions",
+    "django.contrib.messages",
+    "django.contrib.staticfiles",
+    "rest_framework",
+    "django_filters",
+    "drf_spectacular",
+    "drf_spectacular_sidecar",
+    "robots",
+    "missions",
+    "workers",
+]
+
+MIDDLEWARE = [
+    "django.middleware.security.SecurityMiddleware",
+    "whitenoise.middleware.WhiteNoiseMiddleware",
+    "django.contrib.sessions.middleware.SessionMiddleware",
+    "django.middleware.common.CommonMiddleware",
+    "django.middleware.csrf.CsrfViewMiddleware",
+    "django.contrib.auth.middleware.AuthenticationMiddleware",
+    "django.contrib.messages.middleware.MessageMiddleware",
+    "django.middleware.clickjacking.XFrameOptionsMiddleware",
+]
+
+ROOT_URLCONF = "fleet.urls"
+
+TEMPLATES = [
+    {
+        "BACKEND": "django.template.backends.django.DjangoTemplates",
+        "DIRS": [],
+        "APP_DIRS": True,
+        "OPTIONS": {
+            "context_processors": [
+                "django.template.context_processors.request",
+                "django.contrib.auth.context_processors.auth",
+                "django.contrib.messages.context_processors.messages",
+            ],
+        },
+    },
+]
+
+WSGI_APPLICATION = "fleet.wsgi.application"
+
+DATABASES = {
+    "default": {
+        "ENGINE": "django.db.backends.postgresql",
+        "NAME": env_str("FLEET_DB_NAME", "mission_dispatch"),
+        "USER": env_str("FLEET_DB_USER", "postgres"),
+        "PASSWORD": env_str("FLEET_DB_PASSWORD", ""),
+        "HOST": env_str("FLEET_DB_HOST", "127.0.0.1"),
+        "PORT": env_int("FLEET_DB_PORT", 5432),
+        # Persistent connections: no connection setup per request or per task.
+        "CONN_MAX_AGE": None,
+        "CONN_HEALTH_CHECKS": True,
+    }
+}
+
+DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
+
+LANGUAGE_CODE = "en-us"
+TIME_ZONE = "UTC"
+USE_I18N = True
+USE_TZ = True
+
+STATIC_URL = "static/"
+STATIC_ROOT = BASE_DIR / "staticfiles"
+WHITENOISE_USE_FINDERS = True
+
+# --- REST API -------------------------------------------------------------------------------------
+API_PORT = env_int("FLEET_API_PORT", 5000)
+
+REST_FRAMEWORK = {
+    "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
+    "DEFAULT_FILTER_BACKENDS": ["django_filters.rest_framework.DjangoFilterBackend"],
+    "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"],
+    "DEFAULT_PARSER_CLASSES": ["rest_framework.parsers.JSONParser"],
+    "DEFAULT_AUTHENTICATION_CLASSES": [],
+    "DEFAULT_PERMISSION_CLASSES": [],
+    "UNAUTHENTICATED_USER": None,
+    "EXCEPTION_HANDLER": "fleet.api.exception_handler",
+}
+
+SPECTACULAR_SETTINGS = {
+    "TITLE": "Mission Dispatch API",
+    "DESCRIPTION": (
+        "Run behaviour-tree missions on fleets of VDA 5050 robots. "
+        "Compatible with the public REST API of NVIDIA Isaac Mission Dispatch."
+    ),
+    "VERSION": "1.0.0",
+    "SERVE_INCLUDE_SCHEMA": False,
+    "SWAGGER_UI_DIST": "SIDECAR",
+    "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
+    "REDOC_DIST": "SIDECAR",
+    "COMPONENT_SPLIT_REQUEST": True,
+}
+
+# --- Redis and Celery -----------------------------------------------------------------------------
+REDIS_URL = env_str("FLEET_REDIS_URL", "redis://127.0.0.1:6379/0")
+CELERY_BROKER_URL = env_str("FLEET_CELERY_BROKER_URL", REDIS_URL)
+CELERY_TASK_IGNORE_RESULT = True
+CELERY_TASK_ACKS_LATE = True
+CELERY_TASK_REJECT_ON_WORKER_LOST = True
+CELERY_WORKER_PREFETCH_MULTIPLIER = env_int("FLEET_CELERY_PREFETCH", 4)
+CELERY_TASK_ALWAYS_EAGER = env_bool("FLEET_CELERY_EAGER", False)
+CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
+
+# --- MQTT and VDA 5050 ----------------------------------------------------------------------------
+MQTT_HOST = env_str("FLEET_MQTT_HOST", "127.0.0.1")
+MQTT_PORT = env_int("FLEET_MQTT_PORT", 1883)
+MQTT_TRANSPORT = env_str("FLEET_MQTT_TRANSPORT", "tcp")
+MQTT_WS_PATH = env_str("FLEET_MQTT_WS_PATH", "/mqtt")
+MQTT_USERNAME = env_str("FLEET_MQTT_USERNAME", "")
+MQTT_PASSWORD = env_str("FLEET_MQTT_PASSWORD", "")
+
+# Defaults for a new robot's VDA 5050 identity: topic <interface_name>/v<major>/<manufacturer>/<serial>/...
+VDA5050_INTERFACE_NAME = env_str("FLEET_VDA5050_INTERFACE_NAME", "uagv")
+VDA5050_MANUFACTURER = env_str("FLEET_VDA5050_MANUFACTURER", "RobotCompany")
+VDA5050_VERSION = env_str("FLEET_VDA5050_VERSION", "2.0.0")
+
+LOGGING = {
+    "version": 1,
+    "disable_existing_loggers": False,
+    "formatters": {"plain": {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"}},
+    "handlers": {"console": {"class": "logging.StreamHandler", "formatter": "plain"}},
+    "root": {"handlers": ["console"], "level": env_str("FLEET_LOG_LEVEL", "INFO")},
+}
+APPEND_SLASH = False

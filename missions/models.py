@@ -1,0 +1,60 @@
+from django.db import models
+
+from missions.choices import FailureCategory, Lifecycle, MissionState
+
+QUEUE_POSITION_SEQUENCE = "missions_mission_queue_position_seq"
+
+
+class NextQueuePosition(models.Func):
+    """`nextval()` of the queue sequence: a FIFO position that no two missions share, even across processes."""
+
+    function = "nextval"
+    template = f"%(function)s('{QUEUE_POSITION_SEQUENCE}')"
+    output_field = models.BigIntegerField()
+
+    def __init__(self) -> None:
+        super().__init__()
+
+
+class Mission(models.Model):
+    """A behaviour-tree mission for one robot: its spec (from the API) and its status (from the engine)."""
+
+    name = models.CharField(max_length=100, primary_key=True)
+    lifecycle = models.CharField(max_length=20, choices=Lifecycle.choices, default=Lifecycle.ALIVE)
+
+    # --- spec ---
+    robot = models.CharField(max_length=100, help_text="Name of the robot; it need not exist yet.")
+    mission_tree = models.JSONField(help_text="Nodes in the API's shape, each with its name and parent.")
+    timeout = models.FloatField(default=300.0, help_text="Seconds from start before the mission fails.")
+    deadline = models.DateTimeField(null=True, blank=True)
+    needs_canceled = models.BooleanField(default=False)
+    update_nodes = models.JSONField(null=True, blank=True)
+
+    # --- status ---
+    state = models.CharField(max_length=20, choices=MissionState.choices, default=MissionState.PENDING)
+    current_node = models.IntegerField(default=0)
+    node_status = models.JSONField(default=dict)
+    task_status = models.JSONField(default=dict)
+    start_timestamp = models.DateTimeField(null=True, blank=True)
+    end_timestamp = models.DateTimeField(null=True, blank=True)
+    failure_reason = models.TextField(null=True, blank=True)
+    failure_category = models.CharField(
+        max_length=20, choices=FailureCategory.choices, null=True, blank=True
+    )
+
+    # Position in the robot's FIFO queue: missions of one robot run in ascending order.
+    queue_position = models.BigIntegerField(db_default=NextQueuePosition(), editable=False)
+    created_at = models.DateTimeField(auto_now_add=True)
+    updated_at = models.DateTimeField(auto_now=True)
+
+    class Meta:
+        ordering = ["queue_position"]
+        indexes = [
+            models.Index(fields=["robot", "state", "queue_position"], name="mission_queue_idx"),
+            models.Index(fields=["state"], name="mission_state_idx"),
+            models.Index(fields=["start_timestamp"], name="mission_start_idx"),
+            models.Index(fields=["lifecycle"], name="mission_lifecycle_idx"),
+        ]
+
+    def __str__(self) -> str:
+        return self.name

@@ -1,0 +1,53 @@
+"""Enumerations of the robots app, spelled as in the reference API."""
+
+from django.db import models
+
+
+class Lifecycle(models.TextChoices):
+    ALIVE = "ALIVE"
+    PENDING_DELETE = "PENDING_DELETE"
+    DELETED = "DELETED"
+
+
+class RobotState(models.TextChoices):
+    IDLE = "IDLE"
+    ON_TASK = "ON_TASK"
+    CHARGING = "CHARGING"
+    MAP_DEPLOYMENT = "MAP_DEPLOYMENT"
+    TELEOP = "TELEOP"
+
+
+class TeleopAction(models.TextChoices):
+    START = "START"
+    STOP = "STOP"
+
+
+class AgvClass(models.TextChoices):
+    """VDA 5050 factsheet `typeSpecification.agvClass`, filtered on as `robot_type`."""
+
+    FORKLIFT = "FORKLIFT"
+    CONVEYOR = "CONVEYOR"
+    TUGGER = "TUGGER"
+    CARRIER = "CARRIER"
+    MANIPULATOR = "MANIPULATOR"
+    HUMANOID = "HUMANOID"
+
+
+class ProtocolVersion(models.TextChoices):
+    V2_0_0 = "2.0.0"
+    V2_1_0 = "2.1.0"
+
+
+class InstantActionsKey(models.TextChoices):
+    """Array key of outgoing instantActions messages: the spec's, or the 1.1 name some clients still read."""
+
+    ACTIONS = "actions"
+    INSTANT_ACTIONS = "instantActions"
+
+
+# Robot states in which the robot is busy with work of its own (reference: "running").
+RUNNING_STATES = frozenset({RobotState.ON_TASK, RobotState.MAP_DEPLOYMENT, RobotState.CHARGING})
+# States from which teleop may be switched on or off.
+TELEOP_ALLOWED_STATES = frozenset(
+    {RobotState.IDLE, RobotState.ON_TASK, RobotState.MAP_DEPLOYMENT, RobotState.TELEOP}
+)

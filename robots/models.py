@@ -1,0 +1,81 @@
+from django.conf import settings
+from django.db import models
+
+from robots.choices import AgvClass, InstantActionsKey, Lifecycle, ProtocolVersion, RobotState
+
+
+def default_interface_name() -> str:
+    return settings.VDA5050_INTERFACE_NAME
+
+
+def default_manufacturer() -> str:
+    return settings.VDA5050_MANUFACTURER
+
+
+def default_protocol_version() -> str:
+    return settings.VDA5050_VERSION
+
+
+class Robot(models.Model):
+    """A VDA 5050 robot: its spec (set through the API) and its status (reported by the robot)."""
+
+    name = models.CharField(max_length=100, primary_key=True)
+    lifecycle = models.CharField(max_length=20, choices=Lifecycle.choices, default=Lifecycle.ALIVE)
+
+    # --- spec ---
+    labels = models.JSONField(default=list, blank=True)
+    battery_critical_level = models.FloatField(default=10.0)
+    battery_recommended_minimum = models.FloatField(null=True, blank=True)
+    battery_recommended_maximum = models.FloatField(null=True, blank=True)
+    heartbeat_timeout = models.FloatField(default=30.0, help_text="Seconds without a state before offline.")
+    switch_teleop = models.BooleanField(default=False)
+
+    # --- VDA 5050 identity: topic <interface_name>/v<major>/<manufacturer>/<serial_number>/<topic> ---
+    interface_name = models.CharField(max_length=100, default=default_interface_name)
+    manufacturer = models.CharField(max_length=100, default=default_manufacturer)
+    serial_number = models.CharField(max_length=100)
+    protocol_version = models.CharField(
+        max_length=10, choices=ProtocolVersion.choices, default=default_protocol_version
+    )
+    instant_actions_key = models.CharField(
+        max_length=20, choices=InstantActionsKey.choices, default=InstantActionsKey.ACTIONS
+    )
+
+    # --- status ---
+    state = models.CharField(max_length=20, choices=RobotState.choices, default=RobotState.IDLE)
+    online = models.BooleanField(default=False)
+    battery_level = models.FloatField(default=0.0)
+    pose_x = models.FloatField(default=0.0)
+    pose_y = models.FloatField(default=0.0)
+    pose_theta = models.FloatField(default=0.0)
+    pose_map_id = models.CharField(max_length=100, blank=True, default="")
+    position_initialized = models.BooleanField(default=False)
+    software_version = models.JSONField(default=dict, blank=True)
+    hardware_version = models.JSONField(default=dict, blank=True)
+    agv_class = models.CharField(max_length=20, choices=AgvClass.choices, default=AgvClass.CARRIER)
+    speed_max = models.FloatField(default=-1.0)
+    factsheet = models.JSONField(null=True, blank=True, help_text="The robot's last VDA 5050 factsheet, whole.")
+    info_messages = models.JSONField(null=True, blank=True)
+    errors = models.JSONField(default=dict, blank=True)
+    last_state_at = models.DateTimeField(null=True, blank=True)
+
+    created_at = models.DateTimeField(auto_now_add=True)
+    updated_at = models.DateTimeField(auto_now=True)
+
+    class Meta:
+        ordering = ["name"]
+        indexes = [
+            models.Index(fields=["state"], name="robot_state_idx"),
+            models.Index(fields=["online"], name="robot_online_idx"),
+            models.Index(fields=["battery_level"], name="robot_battery_idx"),
+            models.Index(fields=["agv_class"], name="robot_agv_class_idx"),
+            models.Index(fields=["lifecycle"], name="robot_lifecycle_idx"),
+        ]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["interface_name", "manufacturer", "serial_number"], name="robot_vda_identity_unique"
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return self.name
