@@ -15,8 +15,8 @@ class UsageError(Exception):
         self.message = message
 
 
-class NotFoundError(Exception):
-    """The named object does not exist (reference: 400 with `detail`)."""
+class ObjectError(Exception):
+    """A named object is missing or already exists (reference: 400 with `detail`)."""
 
     def __init__(self, detail: str) -> None:
         super().__init__(detail)
@@ -26,6 +26,6 @@ class NotFoundError(Exception):
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
     if isinstance(exc, UsageError):
         return Response({"message": exc.message, "error_code": "USAGE"}, status=status.HTTP_400_BAD_REQUEST)
-    if isinstance(exc, NotFoundError):
+    if isinstance(exc, ObjectError):
         return Response({"detail": exc.detail}, status=status.HTTP_400_BAD_REQUEST)
     return drf_exception_handler(exc, context)
