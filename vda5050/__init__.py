@@ -1,0 +1,5 @@
+"""VDA 5050 (2.0.0 / 2.1.0) as pure Python: no I/O, no Django, paho or Redis.
+
+``models`` (typed messages), ``codec`` (bytes <-> models), ``topics`` (MQTT topic names),
+``orders`` (building and checking orders and instant actions), ``state`` (reading a robot's state).
+"""

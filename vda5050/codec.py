@@ -1,0 +1,219 @@
+"""Bytes <-> models. Parsing is tolerant but raises one ``ProtocolError``; encoding is strict."""
+
+from __future__ import annotations
+
+import re
+from datetime import UTC, datetime
+from typing import Any, TypeVar
+
+import orjson
+from pydantic import BaseModel, ValidationError
+
+from vda5050.errors import ProtocolError
+from vda5050.models import (
+    Connection,
+    ConnectionContent,
+    Content,
+    Factsheet,
+    FactsheetContent,
+    Header,
+    InstantActions,
+    InstantActionsContent,
+    Message,
+    Order,
+    OrderContent,
+    State,
+    StateContent,
+    Visualization,
+    VisualizationContent,
+)
+from vda5050.topics import VERSION_PATTERN, RobotAddress, Topic
+
+__all__ = [
+    "ACTIONS_KEY",
+    "LEGACY_INSTANT_ACTIONS_KEY",
+    "Header",
+    "ProtocolError",
+    "encode",
+    "header_for",
+    "parse",
+    "parse_connection",
+    "parse_factsheet",
+    "parse_instant_actions",
+    "parse_order",
+    "parse_state",
+    "parse_visualization",
+    "utc_timestamp",
+]
+
+ACTIONS_KEY = "actions"
+LEGACY_INSTANT_ACTIONS_KEY = "instantActions"  # VDA 5050 1.1 name, still sent by some masters
+PAYLOAD_FIELD = "<payload>"  # ProtocolError.field when the payload as a whole is wrong
+HEADER_KEYS = ("headerId", "timestamp", "version", "manufacturer", "serialNumber")
+TIMESTAMP_PATTERN = re.compile(r"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d+)?Z")
+
+MESSAGE_TYPES: dict[Topic, type[Message]] = {
+    Topic.ORDER: Order,
+    Topic.INSTANT_ACTIONS: InstantActions,
+    Topic.STATE: State,
+    Topic.CONNECTION: Connection,
+    Topic.VISUALIZATION: Visualization,
+    Topic.FACTSHEET: Factsheet,
+}
+# Checked in order with isinstance, so a full message (a Content subclass) is accepted too.
+CONTENT_MESSAGE_TYPES: tuple[tuple[type[Content], type[Message]], ...] = (
+    (OrderContent, Order),
+    (InstantActionsContent, InstantActions),
+    (StateContent, State),
+    (ConnectionContent, Connection),
+    (VisualizationContent, Visualization),
+    (FactsheetContent, Factsheet),
+)
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
+
+
+# --- timestamps and headers ------------------------------------------------------------------------
+
+
+def utc_timestamp(dt: datetime) -> str:
+    """ISO 8601 UTC with millisecond precision and ``Z``, e.g. ``2026-11-22T10:00:00.123Z``."""
+    if dt.utcoffset() is None:
+        raise ValueError("a naive datetime has no defined UTC time; pass an aware datetime")
+    utc = dt.astimezone(UTC)
+    return f"{utc:%Y-%m-%dT%H:%M:%S}.{utc.microsecond // 1000:03d}Z"
+
+
+def header_for(address: RobotAddress, *, header_id: int, at: datetime) -> Header:
+    """Header of a message to (or from) ``address``: its manufacturer, serial number and version."""
+    return Header(
+        header_id=header_id,
+        timestamp=utc_timestamp(at),
+        version=address.version,
+        manufacturer=address.manufacturer,
+        serial_number=address.serial_number,
+    )
+
+
+# --- parsing ---------------------------------------------------------------------------------------
+
+
+def parse_order(payload: bytes | str) -> Order:
+    return _validate(Order, _load(payload))
+
+
+def parse_instant_actions(payload: bytes | str) -> InstantActions:
+    """Accepts the 2.x ``actions`` key and the legacy 1.1 ``instantActions`` key."""
+    data = _load(payload)
+    if ACTIONS_KEY not in data and LEGACY_INSTANT_ACTIONS_KEY in data:
+        data[ACTIONS_KEY] = data.pop(LEGACY_INSTANT_ACTIONS_KEY)
+    return _validate(InstantActions, data)
+
+
+def parse_state(payload: bytes | str) -> State:
+    return _validate(State, _load(payload))
+
+
+def parse_connection(payload: bytes | str) -> Connection:
+    return _validate(Connection, _load(payload))
+
+
+def parse_visualization(payload: bytes | str) -> Visualization:
+    return _validate(Visualization, _load(payload))
+
+
+def parse_factsheet(payload: bytes | str) -> Factsheet:
+    return _validate(Factsheet, _load(payload))
+
+
+def parse(topic: Topic, payload: bytes | str) -> Message:
+    if topic == Topic.INSTANT_ACTIONS:
+        return parse_instant_actions(payload)
+    return _validate(MESSAGE_TYPES[Topic(topic)], _load(payload))
+
+
+def _load(payload: bytes | str) -> dict[str, Any]:
+    try:
+        data = orjson.loads(payload)
+    except orjson.JSONDecodeError as exc:
+        raise ProtocolError(PAYLOAD_FIELD, f"not valid JSON ({exc})") from exc
+    if not isinstance(data, dict):
+        raise ProtocolError(PAYLOAD_FIELD, f"expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def _validate(model: type[ModelT], data: dict[str, Any]) -> ModelT:
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise _protocol_error(exc) from exc
+
+
+def _protocol_error(exc: ValidationError) -> ProtocolError:
+    """The first problem, named by its wire path (``nodes[0].nodeId``), plus how many more there are."""
+    errors = exc.errors()
+    first = errors[0]
+    reason = first["msg"]
+    if len(errors) > 1:
+        reason += f" (and {len(errors) - 1} more problem(s))"
+    return ProtocolError(_wire_path(first["loc"]) or PAYLOAD_FIELD, reason)
+
+
+def _wire_path(loc: tuple[int | str, ...]) -> str:
+    path = ""
+    for part in loc:
+        path += f"[{part}]" if isinstance(part, int) else f".{part}" if path else part
+    return path
+
+
+# --- encoding --------------------------------------------------------------------------------------
+
+
+def encode(content: Content, header: Header, *, instant_actions_key: str = ACTIONS_KEY) -> bytes:
+    """Stamp ``header`` onto ``content`` and return compact JSON (wire names, no nulls).
+
+    The whole message is validated again, so content changed after construction cannot slip through;
+    ``instant_actions_key="instantActions"`` serves receivers that only know the 1.1 name.
+    """
+    if instant_actions_key not in (ACTIONS_KEY, LEGACY_INSTANT_ACTIONS_KEY):
+        raise ValueError(f"instant_actions_key must be {ACTIONS_KEY!r} or {LEGACY_INSTANT_ACTIONS_KEY!r}")
+    _check_header(header)
+    message_type = _message_type(content)
+    try:
+        wire = {**content.model_dump(by_alias=True), **header.model_dump(by_alias=True)}
+        message = message_type.model_validate(wire)
+    except ValidationError as exc:
+        raise _protocol_error(exc) from exc
+    body = message.model_dump(mode="json", by_alias=True, exclude_none=True)
+    if message_type is InstantActions:
+        body[instant_actions_key] = body.pop(ACTIONS_KEY)
+    return orjson.dumps(_header_first(body))
+
+
+def _check_header(header: Header) -> None:
+    if not _is_utc_timestamp(header.timestamp):
+        raise ProtocolError("timestamp", f"{header.timestamp!r} is not ISO 8601 UTC ending in 'Z'")
+    if not VERSION_PATTERN.fullmatch(header.version):
+        raise ProtocolError("version", f"{header.version!r} is not Major.Minor.Patch")
+
+
+def _is_utc_timestamp(text: str) -> bool:
+    if not TIMESTAMP_PATTERN.fullmatch(text):
+        return False
+    try:
+        datetime.fromisoformat(text)  # rejects impossible dates such as month 13
+    except ValueError:
+        return False
+    return True
+
+
+def _message_type(content: Content) -> type[Message]:
+    for content_type, message_type in CONTENT_MESSAGE_TYPES:
+        if isinstance(content, content_type):
+            return message_type
+    raise TypeError(f"{type(content).__name__} is not a VDA 5050 message content")
+
+
+def _header_first(body: dict[str, Any]) -> dict[str, Any]:
+    """Header keys lead, as in the document's examples, which makes captured traffic easier to read."""
+    return {key: body[key] for key in HEADER_KEYS} | body
