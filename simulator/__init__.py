@@ -1,0 +1,1 @@
+"""Simulated VDA 5050 robots for tests, demos and benchmarks (see README.md)."""

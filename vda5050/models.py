@@ -493,7 +493,8 @@ class TypeSpecification(VdaModel):
     series_name: str
     series_description: str | None = None
     agv_kinematic: AgvKinematic
-    agv_class: AgvClass
+    # Vendors extend the class list (Isaac: MANIPULATOR, HUMANOID); an unknown class is kept as text.
+    agv_class: AgvClass | str
     max_load_mass: float
     localization_types: list[LocalizationType]
     navigation_types: list[NavigationType]

@@ -1,0 +1,154 @@
+"""``python -m simulator``: options compatible with Isaac Mission Dispatch's simulator, plus fleet sizes."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+import time
+
+from simulator.config import (
+    DEFAULT_INTERFACE_NAME,
+    ROBOT_SPEC_FIELDS,
+    SUPPORTED_VERSIONS,
+    RobotConfig,
+    SimulationSettings,
+    parse_robot_spec,
+    spread_robots,
+)
+from simulator.robot import SimulatedRobot
+from simulator.runner import BrokerSettings, Fleet
+from vda5050.topics import RobotAddress, major_version_of
+
+logger = logging.getLogger("simulator")
+
+DEFAULT_ROBOT = "carter01,0,0"
+PREFIX_LEVELS = 3  # interfaceName/majorVersion/manufacturer
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m simulator", description="Simulated VDA 5050 robots, one MQTT connection each."
+    )
+    parser.add_argument(
+        "--robots",
+        nargs="+",
+        default=[],
+        metavar="SPEC",
+        help=f"robots as {ROBOT_SPEC_FIELDS} (default {DEFAULT_ROBOT} unless --count is given)",
+    )
+    parser.add_argument("--count", type=int, default=0, help="add N robots spread out on a grid")
+    parser.add_argument(
+        "--name-prefix",
+        "--name_prefix",
+        dest="name_prefix",
+        default="robot",
+        help="name (and serial number) prefix of --count robots",
+    )
+    parser.add_argument("--speed", type=float, default=1.0, help="m/s (and rad/s turning); 0 = --instant")
+    parser.add_argument("--tick_period", type=float, default=0.25, help="s between motion steps")
+    parser.add_argument("--instant", action="store_true", help="complete every order at once (benchmarks)")
+    parser.add_argument(
+        "--fail_as_warning",
+        action="store_true",
+        help="failure_period raises a WARNING (the order completes) instead of a FATAL error",
+    )
+    parser.add_argument(
+        "--state_period", type=float, default=1.0, help="s, longest gap between state messages"
+    )
+    parser.add_argument("--visualization_period", type=float, default=1.0, help="s; 0 disables visualization")
+    parser.add_argument("--vda_version", choices=SUPPORTED_VERSIONS, default="2.0.0")
+    parser.add_argument("--interface_name", default=DEFAULT_INTERFACE_NAME, help="first topic level")
+    parser.add_argument(
+        "--mqtt_prefix",
+        default=None,
+        help="topic prefix interfaceName/majorVersion/manufacturer, e.g. uagv/v2/RobotCompany;"
+        " overrides --interface_name and the robots' manufacturers in topics",
+    )
+    parser.add_argument("--mqtt_host", default="localhost")
+    parser.add_argument("--mqtt_port", type=int, default=1883)
+    parser.add_argument("--mqtt_transport", choices=("tcp", "websockets"), default="tcp")
+    parser.add_argument(
+        "--mqtt_ws_path", default="/mqtt", help="websocket path (--mqtt_transport websockets)"
+    )
+    parser.add_argument("--mqtt_username", default=None)
+    parser.add_argument("--mqtt_password", default=None)
+    parser.add_argument("--log_level", choices=("DEBUG", "INFO", "WARNING", "ERROR"), default="INFO")
+    return parser
+
+
+def robot_configs(args: argparse.Namespace) -> list[RobotConfig]:
+    specs = args.robots or ([] if args.count else [DEFAULT_ROBOT])
+    configs = [parse_robot_spec(spec) for spec in specs]
+    configs += spread_robots(args.count, args.name_prefix)
+    serials = [config.serial for config in configs]
+    duplicates = sorted({serial for serial in serials if serials.count(serial) > 1})
+    if duplicates:
+        raise ValueError(f"serial numbers must be unique (they are topic levels): {', '.join(duplicates)}")
+    return configs
+
+
+def topic_address(config: RobotConfig, args: argparse.Namespace) -> RobotAddress:
+    """Topic levels of one robot: ``--mqtt_prefix`` if given, else interface/v<major>/manufacturer."""
+    if args.mqtt_prefix is None:
+        return RobotAddress(args.interface_name, config.manufacturer, config.serial, args.vda_version)
+    levels = args.mqtt_prefix.strip("/").split("/")
+    if len(levels) != PREFIX_LEVELS:
+        raise ValueError(
+            f"--mqtt_prefix {args.mqtt_prefix!r} must be interfaceName/majorVersion/manufacturer"
+        )
+    interface_name, major, manufacturer = levels
+    if major != major_version_of(args.vda_version):
+        raise ValueError(
+            f"--mqtt_prefix major version {major!r} does not match --vda_version {args.vda_version}"
+        )
+    return RobotAddress(interface_name, manufacturer, config.serial, args.vda_version)
+
+
+def settings_from(args: argparse.Namespace) -> SimulationSettings:
+    if args.speed < 0 or args.tick_period <= 0 or args.state_period <= 0 or args.visualization_period < 0:
+        raise ValueError("--speed, --visualization_period must be >= 0; --tick_period, --state_period > 0")
+    return SimulationSettings(
+        speed=args.speed,
+        tick_period=args.tick_period,
+        state_period=args.state_period,
+        visualization_period=args.visualization_period,
+        fail_as_warning=args.fail_as_warning,
+        version=args.vda_version,
+        instant=args.instant,
+    )
+
+
+async def simulate(
+    fleet: list[tuple[RobotConfig, RobotAddress]], settings: SimulationSettings, broker: BrokerSettings
+) -> None:
+    """Run until SIGINT/SIGTERM, then publish OFFLINE for every robot and disconnect."""
+    now = time.time()
+    robots = [SimulatedRobot(config, settings, now=now, topic_address=address) for config, address in fleet]
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop.set)
+    logger.info("simulating %d robots against %s:%s", len(robots), broker.host, broker.port)
+    await Fleet(robots, broker, settings.tick_period).run(stop)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        settings = settings_from(args)
+        fleet = [(config, topic_address(config, args)) for config in robot_configs(args)]
+    except ValueError as exc:  # ProtocolError (a bad id or version) is a ValueError too
+        parser.error(str(exc))
+    broker = BrokerSettings(
+        host=args.mqtt_host,
+        port=args.mqtt_port,
+        transport=args.mqtt_transport,
+        ws_path=args.mqtt_ws_path,
+        username=args.mqtt_username,
+        password=args.mqtt_password,
+    )
+    asyncio.run(simulate(fleet, settings, broker))

@@ -1,0 +1,123 @@
+"""What one simulated robot is and how the whole simulation behaves (parsed from the command line)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import StrEnum
+
+DEFAULT_MAP_ID = "map"
+DEFAULT_BATTERY = 20.0
+DEFAULT_MANUFACTURER = "RobotCompany"
+DEFAULT_INTERFACE_NAME = "uagv"
+SUPPORTED_VERSIONS = ("2.0.0", "2.1.0")
+ROBOT_SPEC_FIELDS = (
+    "name,x,y[,theta[,map_id[,failure_period[,battery[,manufacturer[,serial_number[,robot_type]]]]]]]"
+)
+
+
+class RobotType(StrEnum):
+    """``robot_type`` of a robot spec; becomes the factsheet's ``agvClass``.
+
+    MANIPULATOR and HUMANOID are Isaac Mission Dispatch's extensions of the VDA 5050 enum.
+    """
+
+    FORKLIFT = "FORKLIFT"
+    CONVEYOR = "CONVEYOR"
+    TUGGER = "TUGGER"
+    CARRIER = "CARRIER"
+    MANIPULATOR = "MANIPULATOR"
+    HUMANOID = "HUMANOID"
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """One ``--robots`` entry: who the robot is and where it starts."""
+
+    name: str
+    x: float
+    y: float
+    theta: float = 0.0
+    map_id: str = DEFAULT_MAP_ID
+    failure_period: int = 0
+    battery: float = DEFAULT_BATTERY
+    manufacturer: str = DEFAULT_MANUFACTURER
+    serial_number: str = ""
+    robot_type: RobotType = RobotType.CARRIER
+
+    @property
+    def serial(self) -> str:
+        """The serial number, which is also the robot's topic level; defaults to the name."""
+        return self.serial_number or self.name
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """Behaviour shared by every robot of one simulator process."""
+
+    speed: float = 1.0  # m/s, and rad/s when turning on the spot
+    tick_period: float = 0.25  # s between motion steps
+    state_period: float = 1.0  # s, the longest gap between two state messages
+    visualization_period: float = 1.0  # s; 0 disables visualization
+    fail_as_warning: bool = False
+    version: str = "2.0.0"
+    instant: bool = False  # every order completes at once; implied by speed 0
+
+    @property
+    def completes_instantly(self) -> bool:
+        return self.instant or self.speed == 0
+
+    @property
+    def step(self) -> float:
+        """How far a robot moves (m) or turns (rad) in one tick."""
+        return self.speed * self.tick_period
+
+
+def parse_robot_spec(spec: str) -> RobotConfig:
+    """``carter01,4,5`` or ``carter02,9,9,3.14,map,3,80,Acme,sn-2,MANIPULATOR`` -> RobotConfig."""
+    fields = [field.strip() for field in spec.split(",")]
+    if len(fields) < 3 or len(fields) > 10:
+        raise ValueError(f"robot spec {spec!r} must be {ROBOT_SPEC_FIELDS}")
+    name, x, y, *optional = fields
+    if not name:
+        raise ValueError(f"robot spec {spec!r} has no name")
+    optional += [""] * (7 - len(optional))
+    theta, map_id, failure_period, battery, manufacturer, serial_number, robot_type = optional
+    config = RobotConfig(
+        name=name,
+        x=_finite(x, "x", spec),
+        y=_finite(y, "y", spec),
+        theta=_finite(theta, "theta", spec) if theta else 0.0,
+        map_id=map_id or DEFAULT_MAP_ID,
+        failure_period=int(failure_period) if failure_period else 0,
+        battery=_finite(battery, "battery", spec) if battery else DEFAULT_BATTERY,
+        manufacturer=manufacturer or DEFAULT_MANUFACTURER,
+        serial_number=serial_number,
+        robot_type=RobotType(robot_type.upper()) if robot_type else RobotType.CARRIER,
+    )
+    if config.failure_period < 0:
+        raise ValueError(f"robot spec {spec!r}: failure_period must be >= 0")
+    if not 0 <= config.battery <= 100:
+        raise ValueError(f"robot spec {spec!r}: battery must be a percentage")
+    return config
+
+
+def spread_robots(count: int, name_prefix: str, spacing: float = 2.0) -> list[RobotConfig]:
+    """``--count N``: robots ``<prefix>0001``... on a square grid, ``spacing`` metres apart."""
+    columns = max(1, math.ceil(math.sqrt(count)))
+    width = len(str(count))
+    return [
+        RobotConfig(
+            name=f"{name_prefix}{index + 1:0{width}d}",
+            x=(index % columns) * spacing,
+            y=(index // columns) * spacing,
+        )
+        for index in range(count)
+    ]
+
+
+def _finite(text: str, field: str, spec: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"robot spec {spec!r}: {field} must be a finite number")
+    return value
