@@ -1,10 +1,36 @@
-"""Project-wide API pieces: the error handler that turns domain errors into the reference's bodies."""
+"""Project-wide API pieces: the errors and their reference-shaped bodies, object names, row helpers, the
+serializer building blocks every app's API shares, and the health endpoint."""
 
-from typing import Any
+import base64
+import uuid
+from collections.abc import Mapping
+from typing import Any, TypeVar
 
-from rest_framework import status
+from django.core.exceptions import ValidationError as DjangoValidationError
+from django.core.validators import RegexValidator
+from django.db.models import Model, QuerySet
+from django.forms.utils import ErrorDict
+from drf_spectacular.utils import (
+    OpenApiExample,
+    OpenApiResponse,
+    PolymorphicProxySerializer,
+    extend_schema,
+    inline_serializer,
+)
+from rest_framework import serializers, status
+from rest_framework.exceptions import ErrorDetail, ParseError, UnsupportedMediaType, ValidationError
+from rest_framework.request import Request
 from rest_framework.response import Response
+from rest_framework.settings import api_settings
+from rest_framework.views import APIView
 from rest_framework.views import exception_handler as drf_exception_handler
+
+M = TypeVar("M", bound=Model)
+
+HEALTH_STATUS = "Mission Dispatch: Running"
+
+
+# --- errors -----------------------------------------------------------------------------------------
 
 
 class UsageError(Exception):
@@ -22,10 +48,288 @@ class ObjectError(Exception):
         super().__init__(detail)
         self.detail = detail
 
+    @classmethod
+    def not_found(cls, alias: str, name: str) -> "ObjectError":
+        """Missing object on a read or a method (cancel, update, teleop)."""
+        return cls(f'Did not find "{alias}" with name "{name}"')
+
+    @classmethod
+    def not_found_to_change(cls, name: str) -> "ObjectError":
+        """Missing object on PUT or DELETE: the reference words it differently."""
+        return cls(f"Could not find object {name}")
+
+    @classmethod
+    def exists(cls, alias: str, name: str) -> "ObjectError":
+        return cls(f"Object {alias} with name {name} already exists")
+
+
+class QueryValidationError(ValidationError):
+    """Invalid query parameters: reported like invalid body fields, but located in "query"."""
+
+    @classmethod
+    def from_form_errors(cls, errors: ErrorDict) -> "QueryValidationError":
+        """The errors of a Django form (a FilterSet's) with their messages and codes."""
+        return cls(
+            {
+                field: [
+                    ErrorDetail(message, code=error.code or "invalid")
+                    for error in field_errors
+                    for message in error.messages
+                ]
+                for field, field_errors in errors.as_data().items()
+            }
+        )
+
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
+    """Every error body of the API: the reference's shapes, and 400 (not 422 or 415) for invalid input."""
     if isinstance(exc, UsageError):
         return Response({"message": exc.message, "error_code": "USAGE"}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, ObjectError):
         return Response({"detail": exc.detail}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, ValidationError):
+        where = "query" if isinstance(exc, QueryValidationError) else "body"
+        return Response({"detail": schema_errors(exc.detail, [where])}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, ParseError | UnsupportedMediaType):
+        error = {"loc": ["body"], "msg": str(exc.detail), "type": "json_invalid"}
+        return Response({"detail": [error]}, status=status.HTTP_400_BAD_REQUEST)
     return drf_exception_handler(exc, context)
+
+
+def schema_errors(detail: Any, loc: list[str | int]) -> list[dict[str, Any]]:
+    """DRF's nested error detail as FastAPI's flat list: one {loc, msg, type} per message."""
+    if isinstance(detail, Mapping):
+        return [
+            error
+            for key, value in detail.items()
+            for error in schema_errors(
+                value, loc if key == api_settings.NON_FIELD_ERRORS_KEY else [*loc, key]
+            )
+        ]
+    if isinstance(detail, list):
+        errors: list[dict[str, Any]] = []
+        for index, item in enumerate(detail):
+            errors += schema_errors(item, loc if isinstance(item, str) else [*loc, index])
+        return errors
+    return [{"loc": loc, "msg": str(detail), "type": getattr(detail, "code", None) or "invalid"}]
+
+
+# --- object names -----------------------------------------------------------------------------------
+
+# Names are MQTT topic levels and parts of VDA 5050 ids, so they keep to a safe alphabet.
+OBJECT_NAME_MAX_LENGTH = 100
+OBJECT_NAME_ALPHABET = "A-Z a-z 0-9 _ - . :"
+object_name_validator = RegexValidator(
+    r"\A[A-Za-z0-9_.:-]+\Z", message=f"Use only the characters {OBJECT_NAME_ALPHABET}.", code="invalid_name"
+)
+# base32 of a uuid4 without padding, as the reference generates names.
+GENERATED_NAME_LENGTH = 26
+# `<prefix>-<generated>` must still fit in a name.
+NAME_PREFIX_MAX_LENGTH = OBJECT_NAME_MAX_LENGTH - GENERATED_NAME_LENGTH - 1
+
+
+def object_name_check(name: str, *, what: str) -> None:
+    """Raise a UsageError unless `name` is a valid name for a robot, mission or node (`what` names it)."""
+    if len(name) > OBJECT_NAME_MAX_LENGTH:
+        raise UsageError(f"{what} {name!r} is longer than {OBJECT_NAME_MAX_LENGTH} characters.")
+    try:
+        object_name_validator(name)
+    except DjangoValidationError as error:
+        raise UsageError(f"{what} {name!r} is invalid: {error.messages[0]}") from error
+
+
+def object_name_for_create(*, name: str | None, prefix: str | None, what: str) -> str:
+    """The name of a new object: `name`, `<prefix>-<random id>`, or a random id when neither is given."""
+    if name is not None and prefix is not None:
+        raise UsageError('Cannot have both "name" and "prefix"')
+    if name is None:
+        generated = base64.b32encode(uuid.uuid4().bytes).decode().rstrip("=").lower()
+        name = generated if prefix is None else f"{prefix}-{generated}"
+    object_name_check(name, what=what)
+    return name
+
+
+# --- rows ---------------------------------------------------------------------------------------------
+
+
+def object_get(queryset: QuerySet[M], *, alias: str, name: str, to_change: bool = False) -> M:
+    """The object called `name`, or the reference's 400 (worded differently for PUT and DELETE)."""
+    obj = queryset.filter(pk=name).first()
+    if obj is None:
+        raise ObjectError.not_found_to_change(name) if to_change else ObjectError.not_found(alias, name)
+    return obj
+
+
+def lock_row(obj: M) -> M:
+    """`obj` re-read and locked until the transaction ends, so concurrent writers see each other's changes."""
+    locked = type(obj)._default_manager.select_for_update().filter(pk=obj.pk).first()
+    if locked is None:
+        raise ObjectError.not_found_to_change(obj.pk)
+    return locked
+
+
+# --- serializer building blocks ----------------------------------------------------------------------
+
+
+class NumberField(serializers.FloatField):
+    """A float that must be finite: NaN and infinity (JSON `1e999` parses as infinity) are no valid input."""
+
+    default_error_messages = {"invalid": "A finite number is required."}
+
+
+def validate_positive(value: float) -> None:
+    if value <= 0:
+        raise serializers.ValidationError("Must be greater than 0.", code="greater_than")
+
+
+class StrictSerializer(serializers.Serializer):
+    """Rejects keys it does not know, like the reference's `extra = "forbid"` models."""
+
+    def to_internal_value(self, data: Any) -> Any:
+        unknown = [key for key in data if key not in self.fields] if isinstance(data, Mapping) else []
+        message = f"Unknown field. Allowed fields here: {', '.join(self.fields) or 'none'}."
+        errors = {key: [ErrorDetail(message, code="extra_forbidden")] for key in unknown}
+        try:
+            value = super().to_internal_value(data)
+        except ValidationError as error:
+            # Report the unknown fields together with the other errors, not one after the other.
+            if not isinstance(error.detail, Mapping):
+                raise
+            raise ValidationError({**error.detail, **errors}) from error
+        if errors:
+            raise ValidationError(errors)
+        return value
+
+
+class SpecSerializer(StrictSerializer):
+    """A top-level create or PUT body: the spec of an object; its status belongs to the dispatch engine."""
+
+    def to_internal_value(self, data: Any) -> Any:
+        if isinstance(data, Mapping) and "status" in data:
+            raise UsageError(
+                'Attempted to update "status" with the public API. The status is written only by the '
+                "dispatch engine."
+            )
+        return super().to_internal_value(data)
+
+
+class ObjectNameSerializer(serializers.Serializer):
+    """The `name` or `prefix` of a create body."""
+
+    name = serializers.CharField(
+        required=False,
+        allow_null=True,
+        default=None,
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text=(
+            f"Unique name ({OBJECT_NAME_ALPHABET}). If neither name nor prefix is given, a random id of "
+            f"{GENERATED_NAME_LENGTH} characters is used."
+        ),
+    )
+    prefix = serializers.CharField(
+        required=False,
+        allow_null=True,
+        default=None,
+        max_length=NAME_PREFIX_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text="Instead of name: the object is named <prefix>-<random id>.",
+    )
+
+
+DEFAULT_ALLOWED_DEVIATION_XY = 0.1
+DEFAULT_ALLOWED_DEVIATION_THETA = 0.0
+
+
+class Pose2DSerializer(StrictSerializer):
+    """A 2D pose on a map: a route waypoint, or where a robot is."""
+
+    x = NumberField(default=0.0, help_text="x coordinate in metres.")
+    y = NumberField(default=0.0, help_text="y coordinate in metres.")
+    theta = NumberField(default=0.0, help_text="Orientation in radians.")
+    map_id = serializers.CharField(
+        default="", allow_blank=True, trim_whitespace=False, help_text="Map the pose is on."
+    )
+    allowedDeviationXY = NumberField(
+        default=DEFAULT_ALLOWED_DEVIATION_XY,
+        min_value=0.0,
+        help_text="Allowed distance from the pose, metres.",
+    )
+    allowedDeviationTheta = NumberField(
+        default=DEFAULT_ALLOWED_DEVIATION_THETA, min_value=0.0, help_text="Allowed angle deviation, radians."
+    )
+
+
+# --- documented error bodies ---------------------------------------------------------------------------
+
+_OBJECT_ERROR = inline_serializer("ObjectError", {"detail": serializers.CharField()})
+_USAGE_ERROR = inline_serializer(
+    "UsageError", {"message": serializers.CharField(), "error_code": serializers.ChoiceField(["USAGE"])}
+)
+_SCHEMA_ERROR = inline_serializer(
+    "SchemaError",
+    {
+        "detail": inline_serializer(
+            "SchemaErrorItem",
+            {
+                "loc": serializers.ListField(
+                    child=serializers.JSONField(),
+                    help_text='Where: "body" or "query", then field names and list indexes.',
+                ),
+                "msg": serializers.CharField(),
+                "type": serializers.CharField(),
+            },
+            many=True,
+        )
+    },
+)
+
+
+# The success body of DELETE and of POST /mission/{name}/cancel.
+DETAIL_RESPONSE = inline_serializer("Detail", {"detail": serializers.CharField()})
+
+
+def bad_request(*examples: OpenApiExample) -> OpenApiResponse:
+    """The documented 400 response: a missing/duplicate object, a refused request, or invalid input."""
+    return OpenApiResponse(
+        response=PolymorphicProxySerializer(
+            component_name="Error",
+            serializers=[_OBJECT_ERROR, _USAGE_ERROR, _SCHEMA_ERROR],
+            resource_type_field_name=None,
+        ),
+        description=(
+            'A missing or duplicate object ({"detail": "..."}), a request that is not allowed '
+            '({"message": "...", "error_code": "USAGE"}) or invalid input '
+            '({"detail": [{"loc": [...], "msg": "...", "type": "..."}]}).'
+        ),
+        examples=list(examples),
+    )
+
+
+SCHEMA_ERROR_EXAMPLE = OpenApiExample(
+    "Invalid input",
+    value={
+        "detail": [
+            {"loc": ["body", "heartbeat_timeout"], "msg": "Must be greater than 0.", "type": "greater_than"}
+        ]
+    },
+    response_only=True,
+    status_codes=["400"],
+)
+
+
+# --- health ---------------------------------------------------------------------------------------------
+
+
+class HealthView(APIView):
+    """Liveness of the API process."""
+
+    @extend_schema(
+        operation_id="health",
+        summary="Health check",
+        tags=["health"],
+        responses=inline_serializer("Health", {"status": serializers.CharField()}),
+        examples=[OpenApiExample("Running", value={"status": HEALTH_STATUS})],
+    )
+    def get(self, request: Request) -> Response:
+        return Response({"status": HEALTH_STATUS})

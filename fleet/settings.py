@@ -130,6 +130,10 @@ SPECTACULAR_SETTINGS = {
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
     "REDOC_DIST": "SIDECAR",
     "COMPONENT_SPLIT_REQUEST": True,
+    "ENUM_NAME_OVERRIDES": {
+        "RobotStateEnum": "robots.choices.RobotState",
+        "MissionStateEnum": "missions.choices.MissionState",
+    },
 }
 
 # --- Redis and Celery -----------------------------------------------------------------------------
@@ -163,3 +167,35 @@ LOGGING = {
     "root": {"handlers": ["console"], "level": env_str("FLEET_LOG_LEVEL", "INFO")},
 }
 APPEND_SLASH = False
+
+# --- Dispatch engine ------------------------------------------------------------------------------
+# An order the robot's state does not show as accepted after this long is re-sent, identically.
+DISPATCH_ORDER_RESEND_SECONDS = env_float("FLEET_ORDER_RESEND_SECONDS", 3.0)
+# An instant action the robot has not reported FINISHED/FAILED after this long is re-sent.
+DISPATCH_INSTANT_ACTION_RESEND_SECONDS = env_float("FLEET_INSTANT_ACTION_RESEND_SECONDS", 5.0)
+# Ask robots for their factsheet when they are created and when they reconnect.
+DISPATCH_REQUEST_FACTSHEET = env_bool("FLEET_REQUEST_FACTSHEET", True)
+# allowedDeviationXY of an order's first node (the robot's own position), so a strict robot accepts it.
+DISPATCH_START_NODE_DEVIATION = env_float("FLEET_START_NODE_DEVIATION", 0.5)
+# How often beat looks for heartbeats, timeouts, deadlines and unacknowledged messages.
+DISPATCH_BEAT_PERIOD = env_float("FLEET_BEAT_PERIOD", 1.0)
+# Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
+NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
+NOTIFY_BACKOFF_SECONDS = env_float("FLEET_NOTIFY_BACKOFF_SECONDS", 1.0)
+
+# --- MQTT bridge ----------------------------------------------------------------------------------
+# Slow-changing robot status (pose, battery, ...) is written to PostgreSQL at most this often per robot.
+BRIDGE_STATUS_FLUSH_SECONDS = env_float("FLEET_BRIDGE_FLUSH_SECONDS", 1.0)
+# MQTT shared-subscription group: several bridges with the same group split the robots' messages.
+BRIDGE_SHARE_GROUP = env_str("FLEET_BRIDGE_SHARE_GROUP", "")
+TELEMETRY_SENDER = env_str("FLEET_TELEMETRY_SENDER", "")
+
+# --- Celery queues and beat -----------------------------------------------------------------------
+STEP_QUEUE = "steps"
+NOTIFY_QUEUE = "notify"
+CELERY_TASK_DEFAULT_QUEUE = STEP_QUEUE
+CELERY_BROKER_TRANSPORT_OPTIONS = {"visibility_timeout": env_int("FLEET_VISIBILITY_TIMEOUT", 60)}
+CELERY_BEAT_SCHEDULE = {
+    "check-heartbeats": {"task": "fleet.check_heartbeats", "schedule": DISPATCH_BEAT_PERIOD},
+    "sweep": {"task": "fleet.sweep", "schedule": DISPATCH_BEAT_PERIOD},
+}

@@ -1,11 +1,18 @@
 from django.contrib import admin
 from django.urls import include, path
-from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
+from drf_spectacular.views import SpectacularJSONAPIView, SpectacularSwaggerView
+
+from fleet.api import HealthView
+from missions.api.views import BehaviorsView
+from workers.metrics import metrics_view
 
 urlpatterns = [
     path("admin/", admin.site.urls),
-    path("openapi.json", SpectacularAPIView.as_view(), name="openapi"),
+    path("openapi.json", SpectacularJSONAPIView.as_view(), name="openapi"),
     path("docs", SpectacularSwaggerView.as_view(url_name="openapi"), name="docs"),
+    path("health", HealthView.as_view(), name="health"),
+    path("behaviors", BehaviorsView.as_view(), name="behaviors"),
+    path("metrics", metrics_view, name="metrics"),
     path("", include("robots.api.urls")),
     path("", include("missions.api.urls")),
 ]

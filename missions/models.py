@@ -6,7 +6,7 @@ QUEUE_POSITION_SEQUENCE = "missions_mission_queue_position_seq"
 
 
 class NextQueuePosition(models.Func):
-    """`nextval()` of the queue sequence: a FIFO position that no two missions share, even across processes."""
+    """`nextval()` of the queue sequence: a FIFO position no two missions share, even across processes."""
 
     function = "nextval"
     template = f"%(function)s('{QUEUE_POSITION_SEQUENCE}')"
@@ -38,9 +38,17 @@ class Mission(models.Model):
     start_timestamp = models.DateTimeField(null=True, blank=True)
     end_timestamp = models.DateTimeField(null=True, blank=True)
     failure_reason = models.TextField(null=True, blank=True)
-    failure_category = models.CharField(
-        max_length=20, choices=FailureCategory.choices, null=True, blank=True
+    failure_category = models.CharField(max_length=20, choices=FailureCategory.choices, null=True, blank=True)
+
+    waiting_reason = models.TextField(
+        null=True, blank=True, help_text="Why a queued mission has not started yet (e.g. low battery)."
     )
+
+    # --- dispatch engine's record of the current leaf's VDA 5050 order ---
+    order = models.JSONField(null=True, blank=True, help_text="Wire content of the current leaf's order.")
+    order_sent_at = models.DateTimeField(null=True, blank=True)
+    order_accepted = models.BooleanField(default=False)
+    attempts = models.JSONField(default=dict, blank=True, help_text="Orders sent so far, per node name.")
 
     # Position in the robot's FIFO queue: missions of one robot run in ascending order.
     queue_position = models.BigIntegerField(db_default=NextQueuePosition(), editable=False)

@@ -54,7 +54,9 @@ class Robot(models.Model):
     hardware_version = models.JSONField(default=dict, blank=True)
     agv_class = models.CharField(max_length=20, choices=AgvClass.choices, default=AgvClass.CARRIER)
     speed_max = models.FloatField(default=-1.0)
-    factsheet = models.JSONField(null=True, blank=True, help_text="The robot's last VDA 5050 factsheet, whole.")
+    factsheet = models.JSONField(
+        null=True, blank=True, help_text="The robot's last VDA 5050 factsheet, whole."
+    )
     info_messages = models.JSONField(null=True, blank=True)
     errors = models.JSONField(default=dict, blank=True)
     last_state_at = models.DateTimeField(null=True, blank=True)
@@ -79,3 +81,25 @@ class Robot(models.Model):
 
     def __str__(self) -> str:
         return self.name
+
+
+class InstantAction(models.Model):
+    """An instant action for a robot, tracked by actionId until the robot reports it FINISHED or FAILED."""
+
+    action_id = models.CharField(max_length=200, primary_key=True)
+    robot = models.ForeignKey(Robot, on_delete=models.CASCADE, related_name="instant_actions")
+    action_type = models.CharField(max_length=50)
+    mission = models.CharField(max_length=100, null=True, blank=True, help_text="Mission it was sent for.")
+    status = models.CharField(
+        max_length=20, null=True, blank=True, help_text="Last status the robot reported; empty until it does."
+    )
+    sent_at = models.DateTimeField(null=True, blank=True, help_text="Empty until it is first sent.")
+    send_count = models.IntegerField(default=0)
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["created_at"]
+        indexes = [models.Index(fields=["robot", "status"], name="instant_action_robot_idx")]
+
+    def __str__(self) -> str:
+        return f"{self.action_type} {self.action_id}"

@@ -1,0 +1,11 @@
+"""Settings for the test suite: the same services, but a Redis database of its own.
+
+Tests start real bridge, worker and beat processes; a separate Redis database keeps their Celery queue
+and live robot state apart from a development instance (`make run`) on the same machine.
+"""
+
+from fleet.settings import *  # noqa: F403
+from fleet.settings import env_str
+
+REDIS_URL = env_str("FLEET_TEST_REDIS_URL", "redis://127.0.0.1:6379/9")
+CELERY_BROKER_URL = REDIS_URL

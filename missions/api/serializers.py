@@ -1,0 +1,212 @@
+"""Mission API bodies: the mission a client submits, its tree's nodes, route updates, and the mission
+object every endpoint returns. The node serializers' docstrings are also the GET /behaviors descriptions."""
+
+from urllib.parse import urlsplit
+
+from drf_spectacular.utils import extend_schema_field
+from rest_framework import serializers
+
+from fleet.api import (
+    OBJECT_NAME_MAX_LENGTH,
+    NumberField,
+    ObjectNameSerializer,
+    Pose2DSerializer,
+    SpecSerializer,
+    StrictSerializer,
+    object_name_validator,
+    validate_positive,
+)
+from missions.choices import FailureCategory, Lifecycle, MissionState, NodeKind
+from missions.models import Mission
+
+NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
+DEFAULT_NOTIFY_TIMEOUT = 30
+
+
+# --- mission tree nodes ---------------------------------------------------------------------------------
+
+
+class RouteNodeSerializer(StrictSerializer):
+    """Drive through a list of waypoints (one VDA 5050 order); the last one must be reached."""
+
+    waypoints = Pose2DSerializer(many=True, allow_empty=False, help_text="At least one Pose2D.")
+
+
+class MoveNodeSerializer(StrictSerializer):
+    """Move relative to the current pose: drive `distance` metres straight ahead, or turn by `rotation`
+    radians. Exactly one of the two is set."""
+
+    distance = NumberField(required=False, allow_null=True, default=None, help_text="Metres straight ahead.")
+    rotation = NumberField(required=False, allow_null=True, default=None, help_text="Radians to turn.")
+
+    def validate(self, attrs: dict) -> dict:
+        given = [field for field in ("distance", "rotation") if attrs.get(field) is not None]
+        if len(given) != 1:
+            raise serializers.ValidationError(
+                f"Exactly one of distance or rotation must be set, but {len(given)} are set.",
+                code="move_exactly_one",
+            )
+        return attrs
+
+
+class ActionNodeSerializer(StrictSerializer):
+    """Run an action on the robot (a VDA 5050 order whose only node carries the action)."""
+
+    action_type = serializers.CharField(help_text="The robot's name for the action, e.g. dummy_action.")
+    action_parameters = serializers.DictField(
+        default=dict, help_text="Parameters of the action; values keep their JSON types."
+    )
+
+
+class NotifyNodeSerializer(StrictSerializer):
+    """Make an HTTP POST of `json_data` to `url`; the node succeeds if the call does."""
+
+    url = serializers.CharField(help_text="http:// or https:// URL to POST to.")
+    json_data = serializers.DictField(default=dict, help_text="JSON body of the POST.")
+    timeout = serializers.IntegerField(
+        default=DEFAULT_NOTIFY_TIMEOUT, min_value=1, help_text="Seconds to wait for the response."
+    )
+
+    def validate_url(self, url: str) -> str:
+        parts = urlsplit(url)
+        if parts.scheme not in NOTIFY_URL_SCHEMES or not parts.netloc:
+            raise serializers.ValidationError(
+                "Must be an absolute http:// or https:// URL.", code="invalid_url"
+            )
+        return url
+
+
+class ConstantNodeSerializer(StrictSerializer):
+    """Succeed (or fail, with success false) at once; useful in selectors and for tests."""
+
+    success = serializers.BooleanField(default=True)
+
+
+# Composite nodes have no parameters: their body is an empty object.
+EMPTY_OBJECT_SCHEMA = {"type": "object", "additionalProperties": False, "example": {}}
+
+
+@extend_schema_field(EMPTY_OBJECT_SCHEMA)
+class SequenceNodeSerializer(StrictSerializer):
+    """Run the children in order: fail as soon as one fails, succeed when all have succeeded."""
+
+
+@extend_schema_field(EMPTY_OBJECT_SCHEMA)
+class SelectorNodeSerializer(StrictSerializer):
+    """Run the children in order: succeed as soon as one succeeds, fail when all have failed."""
+
+
+# The node kinds in the order GET /behaviors lists them, each with the serializer of its body.
+NODE_KIND_SERIALIZERS: dict[str, type[serializers.Serializer]] = {
+    NodeKind.ROUTE: RouteNodeSerializer,
+    NodeKind.MOVE: MoveNodeSerializer,
+    NodeKind.ACTION: ActionNodeSerializer,
+    NodeKind.NOTIFY: NotifyNodeSerializer,
+    NodeKind.CONSTANT: ConstantNodeSerializer,
+    NodeKind.SEQUENCE: SequenceNodeSerializer,
+    NodeKind.SELECTOR: SelectorNodeSerializer,
+}
+
+
+def node_description(kind: str) -> str:
+    """What a node of this kind does, in one line (its serializer's docstring)."""
+    return " ".join(NODE_KIND_SERIALIZERS[kind].__doc__.split())
+
+
+class MissionNodeSerializer(StrictSerializer):
+    """One node of a mission tree: a name, a parent, and exactly one kind."""
+
+    name = serializers.CharField(
+        required=False,
+        allow_null=True,
+        default=None,
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text='Unique in the tree; "root" is reserved. Default: its index in mission_tree ("0", "1").',
+    )
+    parent = serializers.CharField(
+        default="root", help_text='A selector or sequence that appears earlier in mission_tree, or "root".'
+    )
+    selector = SelectorNodeSerializer(
+        required=False, allow_null=True, help_text=node_description(NodeKind.SELECTOR)
+    )
+    sequence = SequenceNodeSerializer(
+        required=False, allow_null=True, help_text=node_description(NodeKind.SEQUENCE)
+    )
+    route = RouteNodeSerializer(required=False, allow_null=True, help_text=node_description(NodeKind.ROUTE))
+    move = MoveNodeSerializer(required=False, allow_null=True, help_text=node_description(NodeKind.MOVE))
+    action = ActionNodeSerializer(
+        required=False, allow_null=True, help_text=node_description(NodeKind.ACTION)
+    )
+    notify = NotifyNodeSerializer(
+        required=False, allow_null=True, help_text=node_description(NodeKind.NOTIFY)
+    )
+    constant = ConstantNodeSerializer(
+        required=False, allow_null=True, help_text=node_description(NodeKind.CONSTANT)
+    )
+
+
+class RouteUpdatesField(serializers.DictField):
+    """POST /mission/{name}/update body and spec.update_nodes: new waypoints per route node name."""
+
+    child = RouteNodeSerializer()
+
+
+# --- the mission -------------------------------------------------------------------------------------------
+
+
+class MissionSpecSerializer(SpecSerializer):
+    robot = serializers.CharField(
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text="Name of the robot to run the mission; it need not exist yet.",
+    )
+    mission_tree = MissionNodeSerializer(
+        many=True,
+        allow_empty=False,
+        help_text="The nodes of the tree under the implicit root sequence; each parent before its children.",
+    )
+    timeout = NumberField(
+        default=Mission._meta.get_field("timeout").get_default(),
+        validators=[validate_positive],
+        help_text="Seconds the mission may run before it fails.",
+    )
+    deadline = serializers.DateTimeField(allow_null=True, default=None, help_text="Stored, not enforced.")
+    needs_canceled = serializers.BooleanField(default=False, help_text="Set by POST /mission/{name}/cancel.")
+    update_nodes = RouteUpdatesField(
+        allow_null=True,
+        default=None,
+        help_text="New waypoints per route node, set by POST /mission/{name}/update.",
+    )
+
+
+class MissionCreateSerializer(ObjectNameSerializer, MissionSpecSerializer):
+    """A mission's spec plus the name (or name prefix) of the new mission."""
+
+
+class NodeStatusSerializer(serializers.Serializer):
+    state = serializers.ChoiceField(choices=MissionState.choices)
+    error_msg = serializers.CharField(allow_null=True)
+
+
+class MissionStatusSerializer(serializers.Serializer):
+    """The mission's progress, written by the dispatch engine."""
+
+    state = serializers.ChoiceField(choices=MissionState.choices)
+    current_node = serializers.IntegerField(help_text="Index in mission_tree of the current node.")
+    node_status = serializers.DictField(
+        child=NodeStatusSerializer(), help_text='Per node name, "root" included.'
+    )
+    task_status = serializers.DictField(child=serializers.IntegerField())
+    start_timestamp = serializers.DateTimeField(allow_null=True)
+    end_timestamp = serializers.DateTimeField(allow_null=True)
+    failure_reason = serializers.CharField(allow_null=True)
+    failure_category = serializers.ChoiceField(choices=FailureCategory.choices, allow_null=True)
+
+
+class MissionSerializer(MissionSpecSerializer):
+    """A mission: its spec fields (the tree normalized), name, status and lifecycle."""
+
+    name = serializers.CharField()
+    status = MissionStatusSerializer(source="*")
+    lifecycle = serializers.ChoiceField(choices=Lifecycle.choices)

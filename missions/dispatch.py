@@ -1,0 +1,653 @@
+"""One dispatch step for one robot: pure decisions, no I/O.
+
+Given what is stored (the robot, its current or next mission, its unfinished instant actions) and the
+robot's latest VDA 5050 state, `step` returns what to store and which messages to send. The caller
+(`missions.services.robot_step`) holds the robot's row lock, so steps of one robot never interleave; a
+step only reads the latest state, so a duplicate or late wake-up just finds nothing to do.
+
+No Django, paho or Redis imports; states are the API's plain strings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timedelta
+from typing import Any
+
+from missions import engine
+from vda5050 import orders
+from vda5050 import state as vda_state
+from vda5050.models import ActionStatus, Error, ErrorLevel, InstantActionsContent, OrderContent, State
+
+# Robot states (robots.choices.RobotState) and lifecycles, as plain strings.
+IDLE, ON_TASK, CHARGING, TELEOP = "IDLE", "ON_TASK", "CHARGING", "TELEOP"
+ALIVE, PENDING_DELETE = "ALIVE", "PENDING_DELETE"
+# Failure categories (missions.choices.FailureCategory).
+ROBOT_APP, TIMEOUT, DEADLINE, CANCELED_CATEGORY = "ROBOT_APP", "TIMEOUT", "DEADLINE", "CANCELED"
+
+CANCEL_ORDER, START_TELEOP, STOP_TELEOP = "cancelOrder", "startTeleop", "stopTeleop"
+FACTSHEET_REQUEST = "factsheetRequest"
+PAUSE_ORDER = "pause_order"  # the reference's action that hands the robot to teleoperation
+FINAL = frozenset({ActionStatus.FINISHED.value, ActionStatus.FAILED.value})
+ORDER_KINDS = frozenset({engine.ROUTE, engine.MOVE, engine.ACTION})
+
+TIMED_OUT = "Mission timed out"
+DEADLINE_PASSED = "Mission deadline passed"
+ACTION_FAILURE = "Action failure"
+
+
+@dataclass(frozen=True)
+class DispatchSettings:
+    order_resend: timedelta
+    instant_action_resend: timedelta
+    start_deviation_xy: float
+
+
+@dataclass(frozen=True)
+class RobotView:
+    name: str
+    lifecycle: str
+    state: str
+    online: bool
+    battery_critical_level: float
+
+
+@dataclass
+class MissionRecord:
+    """The stored fields of a mission that a step reads or writes."""
+
+    name: str
+    mission_tree: list[dict[str, Any]]
+    timeout: float
+    deadline: datetime | None
+    needs_canceled: bool
+    update_nodes: dict[str, Any] | None
+    lifecycle: str
+    state: str
+    current_node: int
+    node_status: dict[str, dict[str, Any]]
+    task_status: dict[str, int]
+    start_timestamp: datetime | None
+    end_timestamp: datetime | None
+    failure_reason: str | None
+    failure_category: str | None
+    waiting_reason: str | None
+    order: dict[str, Any] | None
+    order_sent_at: datetime | None
+    order_accepted: bool
+    attempts: dict[str, int]
+
+    @property
+    def done(self) -> bool:
+        return self.state in engine.DONE_STATES
+
+
+@dataclass
+class ActionRecord:
+    """An instant action sent (or to be sent: `sent_at` None) and not yet reported final."""
+
+    action_id: str
+    action_type: str
+    mission: str | None
+    status: str | None
+    sent_at: datetime | None
+    send_count: int = 0
+
+
+@dataclass(frozen=True)
+class Outgoing:
+    """A message to publish to the robot: an order or instant actions (header stamped when sent)."""
+
+    content: OrderContent | InstantActionsContent
+
+
+@dataclass
+class StepResult:
+    robot_state: str
+    mission: MissionRecord | None
+    delete_mission: bool = False
+    delete_robot: bool = False
+    actions: list[ActionRecord] = field(default_factory=list)
+    messages: list[Outgoing] = field(default_factory=list)
+    notify: str | None = None  # name of a notify node to run now
+    rejected: bool = False  # the robot rejected an order (counted by the caller)
+
+
+def step(
+    *,
+    now: datetime,
+    robot: RobotView,
+    state: State | None,
+    mission: MissionRecord | None,
+    actions: list[ActionRecord],
+    settings: DispatchSettings,
+) -> StepResult:
+    """Advance `robot` and its `mission` (the RUNNING one, else the head of its queue) by one step."""
+    result = StepResult(robot_state=robot.state, mission=mission, actions=[replace(a) for a in actions])
+    _track_instant_actions(result, robot, state, now, settings)
+    _track_charging(result, state)
+    if mission is not None:
+        mission = replace(mission)
+        result.mission = mission
+        if mission.state == engine.PENDING:
+            _try_start(result, robot, state, mission, now)
+        if mission.state == engine.RUNNING:
+            _advance(result, robot, state, mission, now, settings)
+    _send_instant_actions(result, robot, now, settings)
+    return result
+
+
+# --- instant actions and robot state -----------------------------------------------------------------
+
+
+def _track_instant_actions(
+    result: StepResult, robot: RobotView, state: State | None, now: datetime, settings: DispatchSettings
+) -> None:
+    if state is None:
+        return
+    for action in result.actions:
+        status = vda_state.action_status(state, action.action_id)
+        if status is None or status.value == action.status:
+            continue
+        action.status = status.value
+        if status == ActionStatus.FINISHED and action.action_type == START_TELEOP:
+            result.robot_state = TELEOP
+        elif status == ActionStatus.FINISHED and action.action_type == STOP_TELEOP:
+            result.robot_state = ON_TASK if _has_running_mission(result) else IDLE
+
+
+def _track_charging(result: StepResult, state: State | None) -> None:
+    if state is None:
+        return
+    charging = state.battery_state.charging
+    if charging and result.robot_state == IDLE:
+        result.robot_state = CHARGING
+    elif not charging and result.robot_state == CHARGING:
+        result.robot_state = IDLE
+
+
+def _send_instant_actions(
+    result: StepResult, robot: RobotView, now: datetime, settings: DispatchSettings
+) -> None:
+    """Send new instant actions, re-send unacknowledged ones after a timeout; never on every state."""
+    if not robot.online:
+        return
+    due = [
+        action
+        for action in result.actions
+        if action.status is None
+        and (action.sent_at is None or now - action.sent_at >= settings.instant_action_resend)
+    ]
+    if not due:
+        return
+    for action in due:
+        action.sent_at = now
+        action.send_count += 1
+    content = orders.instant_actions(orders.instant_action(a.action_type, a.action_id) for a in due)
+    result.messages.append(Outgoing(content))
+
+
+def _has_running_mission(result: StepResult) -> bool:
+    return result.mission is not None and result.mission.state == engine.RUNNING
+
+
+def _pending_action(result: StepResult, action_type: str) -> ActionRecord | None:
+    """An instant action of this type the robot has not yet reported FINISHED or FAILED."""
+    for action in result.actions:
+        if action.action_type == action_type and action.status not in FINAL:
+            return action
+    return None
+
+
+def _cancel_of_order(result: StepResult, mission: MissionRecord) -> ActionRecord:
+    """The cancelOrder for the mission's current order, requested now if it was not yet."""
+    assert mission.order is not None
+    prefix = f"{mission.order['orderId']}-cancel"
+    for action in result.actions:
+        if action.action_type == CANCEL_ORDER and action.action_id.startswith(prefix):
+            return action
+    action = ActionRecord(
+        action_id=orders.new_action_id(prefix),
+        action_type=CANCEL_ORDER,
+        mission=mission.name,
+        status=None,
+        sent_at=None,
+    )
+    result.actions.append(action)
+    return action
+
+
+# --- starting a queued mission -------------------------------------------------------------------------
+
+
+def _try_start(
+    result: StepResult, robot: RobotView, state: State | None, mission: MissionRecord, now: datetime
+) -> None:
+    if mission.lifecycle == PENDING_DELETE:
+        result.delete_mission = True
+        return
+    if mission.needs_canceled:
+        _end(result, mission, engine.CANCELED, now, category=CANCELED_CATEGORY)
+        return
+    if mission.deadline is not None and now >= mission.deadline:
+        _end(result, mission, engine.FAILED, now, reason=DEADLINE_PASSED, category=DEADLINE)
+        return
+    reason = _why_not_start(result, robot, state)
+    if reason is not None:
+        mission.waiting_reason = reason
+        return
+    mission.waiting_reason = None
+    mission.state = engine.RUNNING
+    mission.start_timestamp = now
+    mission.node_status = {**mission.node_status, engine.ROOT: {"state": engine.RUNNING, "error_msg": None}}
+    result.robot_state = ON_TASK
+
+
+def _why_not_start(result: StepResult, robot: RobotView, state: State | None) -> str | None:
+    if robot.lifecycle != ALIVE:
+        return "Robot is being deleted"
+    if not robot.online or state is None:
+        return "Robot is offline"
+    if result.robot_state == TELEOP:
+        return "Robot is in teleop"
+    if _pending_action(result, CANCEL_ORDER) is not None:
+        return "Waiting for the robot to cancel its previous order"
+    charge = state.battery_state.battery_charge
+    if charge < robot.battery_critical_level:
+        return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
+    if not vda_state.may_receive_orders(state):
+        return f"Robot is in {state.operating_mode.value} mode"
+    if not vda_state.is_idle(state):
+        return "Robot is busy with an earlier order"
+    return None
+
+
+# --- advancing a running mission ----------------------------------------------------------------------
+
+
+def _advance(
+    result: StepResult,
+    robot: RobotView,
+    state: State | None,
+    mission: MissionRecord,
+    now: datetime,
+    settings: DispatchSettings,
+) -> None:
+    try:
+        tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
+    except engine.TreeError as exc:
+        _end(result, mission, engine.FAILED, now, reason=str(exc), category=ROBOT_APP)
+        return
+    if _ended_by_time_or_owner(result, robot, state, mission, tree, now):
+        return
+    if mission.order is not None and state is not None:
+        _follow_order(result, state, mission, tree, now, settings)
+        if mission.done:
+            return
+    if mission.needs_canceled:
+        _cancel(result, state, mission, tree, now)
+        if mission.done or mission.needs_canceled:
+            return
+    _tick(result, robot, state, mission, tree, now, settings)
+
+
+def _ended_by_time_or_owner(
+    result: StepResult,
+    robot: RobotView,
+    state: State | None,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    now: datetime,
+) -> bool:
+    """Timeout, deadline and robot deletion end a mission at once and stop the robot."""
+    assert mission.start_timestamp is not None
+    if robot.lifecycle == PENDING_DELETE:
+        reason, category = f"Robot {robot.name} was deleted", ROBOT_APP
+        result.delete_robot = True
+    elif now - mission.start_timestamp >= timedelta(seconds=mission.timeout):
+        reason, category = TIMED_OUT, TIMEOUT
+    elif mission.deadline is not None and now >= mission.deadline:
+        reason, category = DEADLINE_PASSED, DEADLINE
+    else:
+        return False
+    if _order_active(state, mission) and not result.delete_robot:
+        _cancel_of_order(result, mission)
+    _finish(result, mission, tree, engine.FAILED, now, reason=reason, category=category)
+    return True
+
+
+def _order_active(state: State | None, mission: MissionRecord) -> bool:
+    """The current leaf's order may still be executing on the robot."""
+    if mission.order is None:
+        return False
+    if state is None or state.order_id != mission.order["orderId"]:
+        return True  # not known to be accepted, it may still arrive
+    return not vda_state.is_idle(state)
+
+
+def _follow_order(
+    result: StepResult,
+    state: State,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    now: datetime,
+    settings: DispatchSettings,
+) -> None:
+    """Acceptance, resend, rejection, progress and errors of the current leaf's order."""
+    order = OrderContent.model_validate(mission.order)
+    leaf = next(node for node in tree.nodes if node.index == _order_node_index(order))
+    if mission.node_status[leaf.name]["state"] != engine.RUNNING:
+        return
+    if not mission.order_accepted:
+        rejection = vda_state.order_rejection(state, order.order_id, order.order_update_id)
+        if rejection is not None:
+            result.rejected = True
+            _leaf_failed(mission, leaf, _describe([rejection]))
+            return
+        if vda_state.order_accepted(state, order.order_id, order.order_update_id):
+            mission.order_accepted = True
+        else:
+            if mission.order_sent_at is None or now - mission.order_sent_at >= settings.order_resend:
+                mission.order_sent_at = now
+                result.messages.append(Outgoing(order))
+            return
+    failures = _fatal_errors_for(state, order)
+    if failures:
+        _leaf_failed(mission, leaf, _describe(failures))
+        if not vda_state.is_idle(state):
+            _cancel_of_order(result, mission)  # a robot that keeps a failed order must not block the next
+        return
+    if leaf.kind == engine.ACTION:
+        _follow_action(result, state, mission, leaf, order)
+    else:
+        _follow_route(state, mission, leaf, order)
+
+
+def _follow_action(
+    result: StepResult, state: State, mission: MissionRecord, leaf: engine.Node, order: OrderContent
+) -> None:
+    action = order.nodes[0].actions[0]
+    status = vda_state.action_status(state, action.action_id)
+    if status == ActionStatus.FINISHED:
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.COMPLETED)
+        if action.action_type == PAUSE_ORDER and result.robot_state == TELEOP:
+            result.robot_state = ON_TASK
+    elif status == ActionStatus.FAILED:
+        errors = vda_state.errors_referencing(state, action_ids=[action.action_id])
+        _leaf_failed(mission, leaf, _describe(errors) if errors else ACTION_FAILURE)
+    elif action.action_type == PAUSE_ORDER and status is not None:
+        result.robot_state = TELEOP
+
+
+def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, order: OrderContent) -> None:
+    last = order.nodes[-1]
+    waypoints = order.nodes[1:]
+    reached = [
+        node for node in waypoints if vda_state.last_node_reached(state, order.order_id, node.sequence_id)
+    ]
+    if leaf.kind == engine.ROUTE:
+        exact = sum(
+            1 for node in reached if node.node_position and not node.node_position.allowed_deviation_xy
+        )
+        if mission.task_status.get(leaf.name) != exact:
+            mission.task_status = {**mission.task_status, leaf.name: exact}
+    if vda_state.last_node_reached(state, order.order_id, last.sequence_id) and vda_state.is_idle(state):
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.COMPLETED)
+
+
+def _fatal_errors_for(state: State, order: OrderContent) -> list[Error]:
+    """FATAL errors about this order, or about nothing in particular (the robot cannot go on)."""
+    ids = _element_ids(order)
+    referencing = vda_state.errors_referencing(
+        state,
+        order_id=order.order_id,
+        node_ids=ids["nodes"],
+        edge_ids=ids["edges"],
+        action_ids=ids["actions"],
+    )
+    return [
+        error
+        for error in state.errors
+        if error.error_level == ErrorLevel.FATAL and (error in referencing or not error.error_references)
+    ]
+
+
+def _element_ids(order: OrderContent) -> dict[str, list[str]]:
+    return {
+        "nodes": [node.node_id for node in order.nodes],
+        "edges": [edge.edge_id for edge in order.edges],
+        "actions": [action.action_id for node in order.nodes for action in node.actions],
+    }
+
+
+def _describe(errors: list[Error]) -> str:
+    return "\n".join(error.error_description or error.error_type for error in errors)
+
+
+def _leaf_failed(mission: MissionRecord, leaf: engine.Node, message: str) -> None:
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.FAILED, message)
+    mission.failure_reason = message
+
+
+def _order_node_index(order: OrderContent) -> int:
+    key = orders.order_key(order.order_id)
+    assert key is not None, f"order {order.order_id} was not built by the dispatch engine"
+    return key.node_index
+
+
+def _cancel(
+    result: StepResult, state: State | None, mission: MissionRecord, tree: engine.Tree, now: datetime
+) -> None:
+    """A canceled running mission ends CANCELED once the robot has stopped its order (or had none)."""
+    if not _order_active(state, mission) or _current_leaf_kind(tree, mission) not in ORDER_KINDS:
+        _finish(result, mission, tree, engine.CANCELED, now, category=CANCELED_CATEGORY)
+        return
+    if _cancel_of_order(result, mission).status in FINAL:
+        _finish(result, mission, tree, engine.CANCELED, now, category=CANCELED_CATEGORY)
+
+
+def _current_leaf_kind(tree: engine.Tree, mission: MissionRecord) -> str | None:
+    leaf = engine.tick(tree, mission.node_status).current_leaf
+    return leaf.kind if leaf is not None else None
+
+
+def _tick(
+    result: StepResult,
+    robot: RobotView,
+    state: State | None,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    now: datetime,
+    settings: DispatchSettings,
+) -> None:
+    tick = engine.tick(tree, mission.node_status)
+    mission.node_status = tick.node_status
+    if tick.current_node is not None:
+        mission.current_node = tick.current_node
+    if tick.mission_state != engine.RUNNING:
+        _end(
+            result,
+            mission,
+            tick.mission_state,
+            now,
+            category=ROBOT_APP if tick.mission_state == engine.FAILED else None,
+        )
+        return
+    leaf = tick.current_leaf
+    assert leaf is not None
+    if _route_update_pending(tree, mission, leaf, settings):
+        _restart_updated_leaf(result, state, mission, leaf, now)
+        return
+    if tick.leaf_to_start is None:
+        return
+    if leaf.kind == engine.NOTIFY:
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.RUNNING)
+        result.notify = leaf.name
+        return
+    if (
+        state is None
+        or not robot.online
+        or not vda_state.is_idle(state)
+        or not vda_state.may_receive_orders(state)
+    ):
+        return  # the order waits until the robot can take it
+    if _pending_action(result, CANCEL_ORDER) is not None:
+        return
+    pose = vda_state.robot_telemetry(state).pose
+    if pose is None:
+        _leaf_failed(mission, leaf, "Robot does not report its position")
+        _tick(result, robot, state, mission, tree, now, settings)
+        return
+    attempt = mission.attempts.get(leaf.name, 0)
+    order = build_order(mission.name, leaf, attempt, pose, settings.start_deviation_xy)
+    mission.attempts = {**mission.attempts, leaf.name: attempt + 1}
+    mission.order = order.model_dump(mode="json", by_alias=True, exclude_none=True)
+    mission.order_sent_at = now
+    mission.order_accepted = False
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.RUNNING)
+    result.messages.append(Outgoing(order))
+
+
+def build_order(
+    mission: str, leaf: engine.Node, attempt: int, pose: orders.Pose, start_deviation_xy: float
+) -> OrderContent:
+    """The VDA 5050 order that executes a route, move or action leaf from the robot's pose."""
+    assert leaf.index is not None
+    common = {
+        "mission": mission,
+        "node_index": leaf.index,
+        "attempt": attempt,
+        "start": pose,
+        "start_deviation_xy": start_deviation_xy,
+    }
+    if leaf.kind == engine.ROUTE:
+        return orders.route_order(waypoints=[_waypoint(wp) for wp in leaf.params["waypoints"]], **common)
+    if leaf.kind == engine.MOVE:
+        return orders.move_order(
+            distance=leaf.params.get("distance"), rotation=leaf.params.get("rotation"), **common
+        )
+    return orders.action_order(
+        action_type=leaf.params["action_type"],
+        parameters=leaf.params.get("action_parameters") or {},
+        **common,
+    )
+
+
+def _waypoint(pose: dict[str, Any]) -> orders.Waypoint:
+    return orders.Waypoint(
+        x=float(pose.get("x", 0.0)),
+        y=float(pose.get("y", 0.0)),
+        theta=float(pose.get("theta", 0.0)),
+        map_id=pose.get("map_id", ""),
+        allowed_deviation_xy=float(pose.get("allowedDeviationXY", orders.DEFAULT_ALLOWED_DEVIATION_XY)),
+        allowed_deviation_theta=float(
+            pose.get("allowedDeviationTheta", orders.DEFAULT_ALLOWED_DEVIATION_THETA)
+        ),
+    )
+
+
+def _route_update_pending(
+    tree: engine.Tree, mission: MissionRecord, leaf: engine.Node, settings: DispatchSettings
+) -> bool:
+    """The running route's order was built from waypoints that an update has since replaced."""
+    if leaf.kind != engine.ROUTE or mission.order is None or not mission.update_nodes:
+        return False
+    if leaf.name not in mission.update_nodes or mission.node_status[leaf.name]["state"] != engine.RUNNING:
+        return False
+    sent = OrderContent.model_validate(mission.order)
+    first = sent.nodes[0].node_position
+    assert first is not None
+    start = orders.Pose(first.x, first.y, first.theta or 0.0, first.map_id)
+    key = orders.order_key(sent.order_id)
+    assert key is not None
+    expected = build_order(mission.name, leaf, key.attempt, start, first.allowed_deviation_xy or 0.0)
+    return expected != sent
+
+
+def _restart_updated_leaf(
+    result: StepResult, state: State | None, mission: MissionRecord, leaf: engine.Node, now: datetime
+) -> None:
+    """Stop the stale order; once stopped, the leaf starts over with the new waypoints (a new order)."""
+    if _order_active(state, mission) and _cancel_of_order(result, mission).status not in FINAL:
+        return
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.PENDING)
+    mission.order = None
+    mission.order_accepted = False
+
+
+# --- ending ---------------------------------------------------------------------------------------------
+
+
+def _finish(
+    result: StepResult,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    final_state: str,
+    now: datetime,
+    *,
+    reason: str | None = None,
+    category: str | None = None,
+) -> None:
+    """End a running mission from outside the tree (cancel, timeout, deadline, robot deleted)."""
+    finished = engine.finish(tree, mission.node_status, state=final_state, error_msg=reason)
+    mission.node_status = finished.node_status
+    if finished.current_node is not None:
+        mission.current_node = finished.current_node
+    _end(result, mission, final_state, now, reason=reason, category=category)
+
+
+def _end(
+    result: StepResult,
+    mission: MissionRecord,
+    final_state: str,
+    now: datetime,
+    *,
+    reason: str | None = None,
+    category: str | None = None,
+) -> None:
+    was_running = mission.state == engine.RUNNING
+    mission.state = final_state
+    mission.end_timestamp = now
+    mission.waiting_reason = None
+    mission.order = None
+    mission.node_status = {
+        **mission.node_status,
+        engine.ROOT: {**mission.node_status.get(engine.ROOT, {"error_msg": None}), "state": final_state},
+    }
+    if reason is not None:
+        mission.failure_reason = reason
+    if final_state == engine.COMPLETED:
+        mission.failure_reason = None  # no stale reason from a branch a selector recovered from
+    if final_state != engine.COMPLETED:
+        mission.failure_category = category or mission.failure_category or ROBOT_APP
+    if was_running and result.robot_state == ON_TASK:
+        result.robot_state = IDLE
+    if mission.lifecycle == PENDING_DELETE:
+        result.delete_mission = True
+
+
+def engine_digest(state: State) -> str:
+    """A fingerprint of what steps depend on; the bridge wakes a step only when it changes.
+
+    Pose and other high-rate fields are left out on purpose: a moving robot must not cost a step per
+    state message. Battery counts in whole percent (it gates queued missions at the critical level).
+    """
+    parts = [
+        state.order_id,
+        str(state.order_update_id),
+        state.last_node_id,
+        str(state.last_node_sequence_id),
+        ",".join(str(node.sequence_id) for node in state.node_states),
+        str(len(state.edge_states)),
+        ",".join(f"{a.action_id}={a.action_status.value}" for a in state.action_states),
+        ",".join(
+            f"{e.error_type}/{e.error_level.value}/"
+            + "+".join(f"{r.reference_key}:{r.reference_value}" for r in e.error_references or ())
+            for e in state.errors
+        ),
+        state.operating_mode.value,
+        str(state.battery_state.charging),
+        str(int(state.battery_state.battery_charge)),
+        str(state.paused),
+    ]
+    return "|".join(parts)

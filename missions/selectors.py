@@ -1,0 +1,82 @@
+"""Reads of missions."""
+
+from collections.abc import Mapping
+from datetime import datetime, timedelta
+from typing import Any
+
+from django.conf import settings
+from django.db.models import DateTimeField, ExpressionWrapper, F, Q, QuerySet, Value
+from django.utils import timezone
+
+from fleet.api import QueryValidationError, object_get
+from missions.choices import MissionState
+from missions.filters import MissionFilter
+from missions.models import Mission
+from robots.models import InstantAction
+
+NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
+
+
+def mission_get(*, name: str, to_change: bool = False) -> Mission:
+    """The mission called `name`; a missing one is the reference's 400 (worded for DELETE if `to_change`)."""
+    return object_get(Mission.objects.all(), alias="mission", name=name, to_change=to_change)
+
+
+def mission_list(*, filters: Mapping[str, Any] | None = None) -> QuerySet[Mission]:
+    """Missions in queue order, narrowed by the GET /mission query filters (MissionFilter); any lifecycle."""
+    filterset = MissionFilter(data=filters or {}, queryset=Mission.objects.order_by("queue_position"))
+    if not filterset.is_valid():
+        raise QueryValidationError.from_form_errors(filterset.errors)
+    return filterset.qs
+
+
+def notify_params(*, mission: str, node: str) -> dict[str, Any] | None:
+    """The notify node's params if that node is running right now, else None."""
+    row = (
+        Mission.objects.filter(name=mission, state=MissionState.RUNNING)
+        .values("mission_tree", "node_status")
+        .first()
+    )
+    if row is None or row["node_status"].get(node, {}).get("state") != MissionState.RUNNING:
+        return None
+    for entry in row["mission_tree"]:
+        if entry.get("name") == node and "notify" in entry:
+            return {"timeout": NOTIFY_DEFAULT_TIMEOUT, **entry["notify"]}
+    return None
+
+
+def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
+    """Robots with something that waits on time: a timeout, a deadline, an unacknowledged message."""
+    now = now or timezone.now()
+    order_resend = now - timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS)
+    action_resend = now - timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS)
+    timeout_at = ExpressionWrapper(
+        F("start_timestamp") + Value(timedelta(seconds=1)) * F("timeout"), output_field=DateTimeField()
+    )
+    running = (
+        Mission.objects.filter(state=MissionState.RUNNING)
+        .annotate(timeout_at=timeout_at)
+        .filter(
+            Q(timeout_at__lte=now)
+            | Q(deadline__lte=now)
+            | Q(needs_canceled=True)
+            | Q(order_accepted=False, order_sent_at__lte=order_resend)
+        )
+    )
+    pending = Mission.objects.filter(state=MissionState.PENDING, deadline__lte=now)
+    actions = InstantAction.objects.filter(status__isnull=True).filter(
+        Q(sent_at__isnull=True) | Q(sent_at__lte=action_resend)
+    )
+    names = set(running.values_list("robot", flat=True))
+    names.update(pending.values_list("robot", flat=True))
+    names.update(actions.values_list("robot_id", flat=True))
+    return sorted(names)
+
+
+def robots_with_missions() -> list[str]:
+    """Robots with a running or queued mission."""
+    return list(
+        Mission.objects.filter(state__in=[MissionState.RUNNING, MissionState.PENDING])
+        .values_list("robot", flat=True)
+        .distinct()
+    )

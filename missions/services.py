@@ -1,0 +1,355 @@
+"""Changes to missions. Each runs in one transaction, locks the row it changes, and wakes the dispatch engine
+for the mission's robot (after commit) so that the engine reacts to the change.
+
+Invariant kept here: a PENDING mission never has needs_canceled set; canceling it ends it at once, so the
+engine only ever cancels RUNNING missions.
+"""
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from datetime import datetime, timedelta
+from typing import Any
+
+from django.conf import settings
+from django.db import IntegrityError, transaction
+from django.db.models import Case, When
+from django.utils import timezone
+
+from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
+from missions import dispatch
+from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
+from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
+from missions.models import Mission
+from robots.models import InstantAction, Robot
+from robots.selectors import robot_address, robot_unfinished_instant_actions
+from vda5050.codec import parse_state
+from vda5050.errors import ProtocolError
+from vda5050.models import State
+from vda5050.topics import RobotAddress
+from workers import livestate
+from workers.wake import wake_robot
+
+logger = logging.getLogger(__name__)
+
+# Mission states in which routes may still be updated.
+UPDATABLE_STATES = frozenset({MissionState.PENDING, MissionState.RUNNING})
+# Fields a cancel writes.
+CANCEL_FIELDS = ("state", "end_timestamp", "failure_category", "needs_canceled", "node_status")
+
+
+def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Mission:
+    """A new PENDING mission, queued behind the robot's other missions (the robot need not exist yet).
+
+    `spec` is in the API's shape (robot, mission_tree, timeout, deadline, needs_canceled, update_nodes).
+    The tree is stored normalized: every node named (unnamed ones by their index) with its parent and its
+    one kind. A mission created with needs_canceled is created CANCELED.
+    """
+    mission_name = object_name_for_create(name=name, prefix=prefix, what="Mission name")
+    robot = spec["robot"]
+    object_name_check(robot, what="Robot name")
+    tree = _tree_parse(spec["mission_tree"])
+    mission = Mission(
+        name=mission_name,
+        robot=robot,
+        mission_tree=[
+            {"name": node.name, "parent": node.parent, node.kind: node.params} for node in tree.nodes
+        ],
+        timeout=spec.get("timeout", Mission._meta.get_field("timeout").get_default()),
+        deadline=spec.get("deadline"),
+        node_status=initial_node_status(tree),
+    )
+    update_nodes = spec.get("update_nodes")
+    if update_nodes is not None:
+        _route_updates_check(mission, tree, update_nodes)
+        mission.update_nodes = _plain(update_nodes)
+    if spec.get("needs_canceled"):
+        _cancel_queued(mission)
+    try:
+        with transaction.atomic():
+            mission.save(force_insert=True)
+            wake_robot(mission.robot)
+    except IntegrityError as error:
+        raise ObjectError.exists("mission", mission_name) from error
+    return mission
+
+
+def mission_cancel(*, mission: Mission) -> Mission:
+    """Cancel a mission: a queued one is CANCELED at once; a RUNNING one gets needs_canceled, and the engine
+    sends the robot cancelOrder and ends it when the robot confirms. A finished mission is a UsageError."""
+    with transaction.atomic():
+        locked = lock_row(mission)
+        if locked.state == MissionState.CANCELED:
+            raise UsageError(f"Mission {locked.name} is already canceled.")
+        if locked.state in DONE_STATES:
+            raise UsageError(f"{locked.state.capitalize()} mission {locked.name} can't be canceled.")
+        if locked.state == MissionState.PENDING:
+            _cancel_queued(locked)
+        else:
+            locked.needs_canceled = True
+        locked.save(update_fields=[*CANCEL_FIELDS, "updated_at"])
+        wake_robot(locked.robot)
+    return locked
+
+
+def mission_delete(*, mission: Mission) -> Mission | None:
+    """Mark the mission PENDING_DELETE and remove it, at once unless it is RUNNING: then it is canceled
+    (needs_canceled) and the engine removes it when it ends. Returns the mission while it remains, else None.
+    """
+    with transaction.atomic():
+        locked = lock_row(mission)
+        wake_robot(locked.robot)
+        if locked.state == MissionState.RUNNING:
+            locked.lifecycle = Lifecycle.PENDING_DELETE
+            locked.needs_canceled = True
+            locked.save(update_fields=["lifecycle", "needs_canceled", "updated_at"])
+            return locked
+        locked.delete()
+    return None
+
+
+def mission_update_routes(*, mission: Mission, update_nodes: Mapping[str, Mapping[str, Any]]) -> Mission:
+    """Give route nodes new waypoints (merged into update_nodes); the engine re-sends a running route.
+
+    Only while the mission is PENDING or RUNNING, only route nodes, and only nodes that are not done.
+    """
+    with transaction.atomic():
+        locked = lock_row(mission)
+        if locked.state not in UPDATABLE_STATES:
+            raise UsageError(f"Mission {locked.name} is finished with status {locked.state}.")
+        _route_updates_check(locked, _tree_parse(locked.mission_tree), update_nodes)
+        locked.update_nodes = {**(locked.update_nodes or {}), **_plain(update_nodes)}
+        locked.save(update_fields=["update_nodes", "updated_at"])
+        wake_robot(locked.robot)
+    return locked
+
+
+def _tree_parse(mission_tree: list[Mapping[str, Any]]) -> Tree:
+    """The mission tree checked to be one the engine can run, with valid node names."""
+    if not mission_tree:
+        raise UsageError("Number of nodes must be >= 1")
+    try:
+        tree = parse_tree([_plain(node) for node in mission_tree])
+    except TreeError as error:
+        raise UsageError(str(error)) from error
+    for node in tree.nodes:
+        object_name_check(node.name, what="MissionNode name")
+    return tree
+
+
+def _route_updates_check(mission: Mission, tree: Tree, update_nodes: Mapping[str, Any]) -> None:
+    """Refuse updates of nodes that do not exist, are not routes, or are done in a running mission."""
+    nodes = {node.name: node for node in tree.nodes}
+    for name in update_nodes:
+        node = nodes.get(name)
+        if node is None:
+            raise UsageError(f"Node {name} does not exist in mission {mission.name}")
+        if node.kind != NodeKind.ROUTE:
+            raise UsageError(
+                f"Node {name} of mission {mission.name} is a {node.kind} node; only routes can be updated."
+            )
+        node_state = mission.node_status.get(name, {}).get("state")
+        if mission.state == MissionState.RUNNING and node_state in DONE_STATES:
+            raise UsageError(f"Mission node {name} is finished with status {node_state}.")
+
+
+def _cancel_queued(mission: Mission) -> None:
+    """End a mission that never started: CANCELED, its root too; its nodes stay PENDING."""
+    mission.state = MissionState.CANCELED
+    mission.end_timestamp = timezone.now()
+    mission.failure_category = FailureCategory.CANCELED
+    mission.needs_canceled = True
+    mission.node_status = {**mission.node_status, ROOT: {"state": MissionState.CANCELED, "error_msg": None}}
+
+
+def _plain(value: Any) -> Any:
+    """`value` with validated data's OrderedDicts turned into plain dicts, as stored in JSON fields."""
+    if isinstance(value, Mapping):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_plain(item) for item in value]
+    return value
+
+
+def mission_notify_finished(*, mission: str, node: str, success: bool, error_msg: str | None) -> None:
+    """Record a notify node's result and step its robot; a result for a node no longer running is dropped."""
+    with transaction.atomic():
+        locked = Mission.objects.select_for_update().filter(name=mission).first()
+        if locked is None or locked.state != MissionState.RUNNING:
+            return
+        if locked.node_status.get(node, {}).get("state") != MissionState.RUNNING:
+            return
+        state = MissionState.COMPLETED if success else MissionState.FAILED
+        locked.node_status = set_leaf_state(locked.node_status, node, state, error_msg)
+        if not success:
+            locked.failure_reason = error_msg
+        locked.save(update_fields=["node_status", "failure_reason", "updated_at"])
+        wake_robot(locked.robot)
+
+
+# --- dispatch: stepping a robot ------------------------------------------------------------------------
+
+STEP_STATUS_FIELDS = [
+    "state",
+    "current_node",
+    "node_status",
+    "task_status",
+    "start_timestamp",
+    "end_timestamp",
+    "failure_reason",
+    "failure_category",
+    "waiting_reason",
+    "order",
+    "order_sent_at",
+    "order_accepted",
+    "attempts",
+    "updated_at",
+]
+
+
+@dataclass
+class StepOutcome:
+    """What a step decided that happens outside the database: messages to publish, notify nodes to run."""
+
+    address: RobotAddress | None = None
+    instant_actions_key: str = "actions"
+    messages: list[dispatch.Outgoing] = field(default_factory=list)
+    notifies: list[tuple[str, str]] = field(default_factory=list)
+    finished: list[Mission] = field(default_factory=list)
+    rejections: int = 0
+
+
+def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
+    """Advance robot `name`: its instant actions, its running mission, and the next ones in its queue.
+
+    Runs under the robot's row lock, so steps of one robot are serialized across workers; everything it
+    decides is stored before the caller publishes, so a crash in between only delays a (re)send.
+    """
+    now = now or timezone.now()
+    outcome = StepOutcome()
+    with transaction.atomic():
+        robot = Robot.objects.select_for_update().filter(name=name).first()
+        if robot is None:
+            return outcome
+        outcome.address = robot_address(robot)
+        outcome.instant_actions_key = robot.instant_actions_key
+        state = _live_state(name)
+        actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=robot)]
+        view = dispatch.RobotView(
+            name=robot.name,
+            lifecycle=robot.lifecycle,
+            state=robot.state,
+            online=robot.online,
+            battery_critical_level=robot.battery_critical_level,
+        )
+        while True:
+            mission = (
+                Mission.objects.select_for_update()
+                .filter(robot=name, state__in=[MissionState.RUNNING, MissionState.PENDING])
+                .order_by(Case(When(state=MissionState.RUNNING, then=0), default=1), "queue_position")
+                .first()
+            )
+            record = _mission_record(mission) if mission is not None else None
+            result = dispatch.step(
+                now=now,
+                robot=view,
+                state=state,
+                mission=record,
+                actions=actions,
+                settings=dispatch_settings(),
+            )
+            _store_actions(robot, actions, result.actions)
+            actions = [a for a in result.actions if a.status not in dispatch.FINAL]
+            outcome.messages.extend(result.messages)
+            outcome.rejections += int(result.rejected)
+            view = replace(view, state=result.robot_state)
+            if mission is not None and result.mission is not None:
+                _store_mission(mission, result.mission)
+                if result.notify is not None:
+                    outcome.notifies.append((mission.name, result.notify))
+                if result.mission.done:
+                    outcome.finished.append(mission)
+                if result.delete_mission:
+                    mission.delete()
+            if result.delete_robot:
+                robot.delete()
+                transaction.on_commit(lambda: livestate.forget(name))
+                return outcome
+            if mission is None or not (result.mission.done or result.delete_mission):
+                break
+        if robot.state != view.state:
+            robot.state = view.state
+            robot.save(update_fields=["state", "updated_at"])
+    return outcome
+
+
+def dispatch_settings() -> dispatch.DispatchSettings:
+    return dispatch.DispatchSettings(
+        order_resend=timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS),
+        instant_action_resend=timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS),
+        start_deviation_xy=settings.DISPATCH_START_NODE_DEVIATION,
+    )
+
+
+def _live_state(name: str) -> State | None:
+    payload = livestate.latest_state(name)
+    if payload is None:
+        return None
+    try:
+        return parse_state(payload)
+    except ProtocolError:  # the bridge only stores states it could parse; a stale format is not fatal
+        logger.warning("stored state of robot %s no longer parses", name)
+        return None
+
+
+def _mission_record(mission: Mission) -> dispatch.MissionRecord:
+    return dispatch.MissionRecord(
+        **{f.name: getattr(mission, f.name) for f in fields(dispatch.MissionRecord)}
+    )
+
+
+def _store_mission(mission: Mission, record: dispatch.MissionRecord) -> None:
+    changed = [f for f in STEP_STATUS_FIELDS[:-1] if getattr(mission, f) != getattr(record, f)]
+    if not changed:
+        return
+    for name in changed:
+        setattr(mission, name, getattr(record, name))
+    mission.save(update_fields=[*changed, "updated_at"])
+
+
+def _action_record(action: InstantAction) -> dispatch.ActionRecord:
+    return dispatch.ActionRecord(
+        action_id=action.action_id,
+        action_type=action.action_type,
+        mission=action.mission,
+        status=action.status,
+        sent_at=action.sent_at,
+        send_count=action.send_count,
+    )
+
+
+def _store_actions(
+    robot: Robot, before: list[dispatch.ActionRecord], after: list[dispatch.ActionRecord]
+) -> None:
+    """Insert new instant actions and save the ones whose status or send time changed."""
+    known = {a.action_id: a for a in before}
+    changed = [a for a in after if known.get(a.action_id) != a]
+    if not changed:
+        return
+    InstantAction.objects.bulk_create(
+        [
+            InstantAction(
+                action_id=a.action_id,
+                robot=robot,
+                action_type=a.action_type,
+                mission=a.mission,
+                status=a.status,
+                sent_at=a.sent_at,
+                send_count=a.send_count,
+            )
+            for a in changed
+        ],
+        update_conflicts=True,
+        unique_fields=["action_id"],
+        update_fields=["status", "sent_at", "send_count"],
+    )

@@ -1,0 +1,239 @@
+"""Operator view of robots: the spec is editable, the status is what the robot reports; creating, deleting
+and teleop go through the same services as the API."""
+
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from typing import Any, TypeVar
+
+from django import forms
+from django.contrib import admin, messages
+from django.contrib.admin.utils import flatten_fieldsets, model_ngettext
+from django.db.models import Model, QuerySet
+from django.forms.models import model_to_dict
+from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
+
+from fleet.api import UsageError, object_name_validator
+from robots.api.serializers import RobotSpecSerializer, RobotVda5050Serializer
+from robots.choices import TeleopAction
+from robots.models import Robot
+from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
+
+BATTERY_FIELDS = ("battery_critical_level", "battery_recommended_minimum", "battery_recommended_maximum")
+# Spec fields an operator may edit on an existing robot; teleop is switched with the actions instead,
+# so that the service checks the robot's state and tells the robot.
+EDITABLE_SPEC_FIELDS = ("labels", *BATTERY_FIELDS, "heartbeat_timeout")
+STATUS_FIELDS = (
+    "state",
+    "online",
+    "battery_level",
+    "pose",
+    "position_initialized",
+    "last_state_at",
+    "agv_class",
+    "speed_max",
+    "hardware_version",
+    "software_version",
+    "info_messages",
+    "errors",
+)
+IDENTITY_FIELDS = (
+    "interface_name",
+    "manufacturer",
+    "serial_number",
+    "protocol_version",
+    "instant_actions_key",
+)
+SPEC_FIELDS = (*EDITABLE_SPEC_FIELDS, "switch_teleop")
+
+M = TypeVar("M", bound=Model)
+
+
+def call_service_for_each(
+    modeladmin: admin.ModelAdmin,
+    request: HttpRequest,
+    objects: Iterable[M],
+    call: Callable[[M], object],
+    done: str,
+) -> None:
+    """Run an admin action's service on each selected object; the ones it refuses (UsageError) are
+    reported together as one warning instead of aborting the rest."""
+    accepted = 0
+    refusals: list[str] = []
+    for obj in objects:
+        try:
+            call(obj)
+        except UsageError as error:
+            refusals.append(error.message)
+        else:
+            accepted += 1
+    if accepted:
+        noun = model_ngettext(modeladmin.opts, accepted)
+        modeladmin.message_user(request, f"{done} for {accepted} {noun}.", messages.SUCCESS)
+    if refusals:
+        modeladmin.message_user(request, " ".join(refusals), messages.WARNING)
+
+
+def delete_through_service(
+    modeladmin: admin.ModelAdmin,
+    request: HttpRequest,
+    objects: Iterable[M],
+    delete: Callable[[M], M | None],
+    until: str,
+) -> None:
+    """Delete each object with its service; the ones the service only marks PENDING_DELETE (it returns
+    them) are named in a message, since the admin's own message says they were deleted."""
+    remaining = [str(obj) for obj in objects if delete(obj) is not None]
+    if remaining:
+        modeladmin.message_user(
+            request, f"PENDING_DELETE until {until}: {', '.join(remaining)}.", messages.INFO
+        )
+
+
+def robot_spec(values: Mapping[str, Any]) -> dict[str, Any]:
+    """Spec fields (by model field name) in the API's spec shape, as the robot services take them."""
+    return {
+        "labels": values["labels"],
+        "battery": {field.removeprefix("battery_"): values[field] for field in BATTERY_FIELDS},
+        "heartbeat_timeout": values["heartbeat_timeout"],
+        "switch_teleop": values["switch_teleop"],
+    }
+
+
+def serializer_errors(errors: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...], str]]:
+    """A DRF error tree as (path, message) pairs, e.g. (("battery", "critical_level"), "Must be ...")."""
+    if isinstance(errors, Mapping):
+        for key, value in errors.items():
+            yield from serializer_errors(value, (*path, str(key)))
+    elif isinstance(errors, list):
+        for error in errors:
+            yield from serializer_errors(error, path)
+    else:
+        yield path, str(errors)
+
+
+class RobotAdminForm(forms.ModelForm):
+    """The spec part of a robot, checked by the API's own spec serializer so that the admin accepts exactly
+    what the API accepts; `spec` then holds it in the services' shape."""
+
+    class Meta:
+        model = Robot
+        # The admin narrows this to the fields of the add or change page.
+        fields = ("name", *SPEC_FIELDS)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        if "name" in self.fields:
+            self.fields["name"].validators.append(object_name_validator)
+        self.spec: dict[str, Any] = {}
+
+    def clean(self) -> dict[str, Any]:
+        cleaned_data = super().clean()
+        if self.errors:
+            return cleaned_data
+        spec = robot_spec({**model_to_dict(self.instance, fields=SPEC_FIELDS), **cleaned_data})
+        if not self.instance._state.adding:
+            spec["vda5050"] = RobotVda5050Serializer(self.instance).data
+        serializer = RobotSpecSerializer(data=spec)
+        if serializer.is_valid():
+            self.spec = serializer.validated_data
+        for path, message in serializer_errors(serializer.errors):
+            field = next((name for name in ("_".join(path), path[0]) if name in self.fields), None)
+            self.add_error(field, message if field else f"{'.'.join(path)}: {message}")
+        return cleaned_data
+
+
+@admin.register(Robot)
+class RobotAdmin(admin.ModelAdmin):
+    form = RobotAdminForm
+    list_display = (
+        "name",
+        "state",
+        "online",
+        "battery_level",
+        "pose",
+        "agv_class",
+        "lifecycle",
+        "last_state_at",
+        "updated_at",
+    )
+    list_filter = ("state", "online", "lifecycle", "agv_class")
+    search_fields = ("name",)
+    ordering = ("name",)
+    list_per_page = 50
+    actions = ("start_teleop", "stop_teleop")
+    add_fieldsets = (
+        (None, {"fields": ("name",)}),
+        ("Spec", {"fields": ("labels", BATTERY_FIELDS, "heartbeat_timeout", "switch_teleop")}),
+    )
+    fieldsets = (
+        (None, {"fields": ("name", "lifecycle")}),
+        ("Spec", {"fields": ("labels", BATTERY_FIELDS, "heartbeat_timeout", "switch_teleop")}),
+        ("Status", {"fields": STATUS_FIELDS}),
+        ("VDA 5050 identity", {"fields": IDENTITY_FIELDS}),
+        ("Factsheet", {"classes": ("collapse",), "fields": ("factsheet",)}),
+        ("Timestamps", {"fields": ("created_at", "updated_at")}),
+    )
+
+    def get_fieldsets(self, request: HttpRequest, obj: Robot | None = None) -> tuple:
+        return self.add_fieldsets if obj is None else self.fieldsets
+
+    def get_readonly_fields(self, request: HttpRequest, obj: Robot | None = None) -> tuple[str, ...]:
+        if obj is None:
+            return ()
+        return tuple(
+            field for field in flatten_fieldsets(self.fieldsets) if field not in EDITABLE_SPEC_FIELDS
+        )
+
+    @admin.display(description="pose")
+    def pose(self, robot: Robot) -> str:
+        where = f" @ {robot.pose_map_id}" if robot.pose_map_id else ""
+        return f"({robot.pose_x:.2f}, {robot.pose_y:.2f}, {robot.pose_theta:.2f}){where}"
+
+    def changeform_view(
+        self,
+        request: HttpRequest,
+        object_id: str | None = None,
+        form_url: str = "",
+        extra_context: Any = None,
+    ) -> HttpResponse:
+        """A save the service refuses (e.g. a VDA 5050 identity another robot uses) is shown as an error
+        on the same page, not as a server error; the form's transaction is rolled back."""
+        try:
+            return super().changeform_view(request, object_id, form_url, extra_context)
+        except UsageError as error:
+            self.message_user(request, error.message, messages.ERROR)
+            return HttpResponseRedirect(request.get_full_path())
+
+    def save_model(self, request: HttpRequest, obj: Robot, form: RobotAdminForm, change: bool) -> None:
+        if not change:
+            robot_create(name=obj.name, prefix=None, spec=form.spec)
+        elif form.changed_data:
+            robot_update_spec(robot=obj, spec=form.spec)
+
+    def delete_model(self, request: HttpRequest, obj: Robot) -> None:
+        self.delete_queryset(request, [obj])
+
+    def delete_queryset(self, request: HttpRequest, queryset: Iterable[Robot]) -> None:
+        delete_through_service(
+            self,
+            request,
+            queryset,
+            lambda robot: robot_delete(robot=robot),
+            "the engine has failed their running mission",
+        )
+
+    def teleop(self, request: HttpRequest, queryset: QuerySet[Robot], action: TeleopAction) -> None:
+        call_service_for_each(
+            self,
+            request,
+            queryset,
+            lambda robot: robot_teleop(robot=robot, action=action),
+            f"{action} teleop requested",
+        )
+
+    @admin.action(description="Start teleop", permissions=["change"])
+    def start_teleop(self, request: HttpRequest, queryset: QuerySet[Robot]) -> None:
+        self.teleop(request, queryset, TeleopAction.START)
+
+    @admin.action(description="Stop teleop", permissions=["change"])
+    def stop_teleop(self, request: HttpRequest, queryset: QuerySet[Robot]) -> None:
+        self.teleop(request, queryset, TeleopAction.STOP)

@@ -1,0 +1,163 @@
+"""Robot API bodies: the spec a client sends (create, PUT) and the robot object every endpoint returns."""
+
+from typing import Any
+
+from django.conf import settings
+from drf_spectacular.utils import extend_schema_field
+from rest_framework import serializers
+
+from fleet.api import (
+    OBJECT_NAME_MAX_LENGTH,
+    NumberField,
+    ObjectNameSerializer,
+    Pose2DSerializer,
+    SpecSerializer,
+    StrictSerializer,
+    object_name_validator,
+    validate_positive,
+)
+from robots.choices import AgvClass, InstantActionsKey, Lifecycle, ProtocolVersion, RobotState, TeleopAction
+from robots.models import Robot
+
+
+def _model_default(field: str) -> Any:
+    return Robot._meta.get_field(field).get_default()
+
+
+# --- what a client sends --------------------------------------------------------------------------------
+
+
+class BatterySpecSerializer(StrictSerializer):
+    critical_level = NumberField(
+        default=_model_default("battery_critical_level"), help_text="Stored, unused."
+    )
+    recommended_minimum = NumberField(
+        allow_null=True, default=None, help_text="Battery level below which the robot should charge."
+    )
+    recommended_maximum = NumberField(allow_null=True, default=None, help_text="Stored, unused.")
+
+
+class Vda5050IdentitySerializer(StrictSerializer):
+    """How the robot is reached: topics <interface_name>/v<major>/<manufacturer>/<serial_number>/<topic>."""
+
+    interface_name = serializers.CharField(
+        required=False,
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text=f"First topic level; default {settings.VDA5050_INTERFACE_NAME!r} (setting).",
+    )
+    manufacturer = serializers.CharField(
+        required=False,
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text=f"Default {settings.VDA5050_MANUFACTURER!r} (setting).",
+    )
+    serial_number = serializers.CharField(
+        required=False,
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text="Default: the robot's name, as in the reference.",
+    )
+    version = serializers.ChoiceField(
+        choices=ProtocolVersion.choices,
+        required=False,
+        help_text=f"VDA 5050 version the robot speaks; default {settings.VDA5050_VERSION!r} (setting).",
+    )
+    instant_actions_key = serializers.ChoiceField(
+        choices=InstantActionsKey.choices,
+        required=False,
+        help_text="Array key of instantActions: 'actions' (VDA 5050 2.x) or the older 'instantActions'.",
+    )
+
+
+class RobotSpecSerializer(SpecSerializer):
+    """The whole spec of a robot (PUT replaces it: omitted fields go back to their defaults)."""
+
+    labels = serializers.ListField(
+        child=serializers.CharField(), default=list, help_text="Labels to group robots by (stored, unused)."
+    )
+    battery = BatterySpecSerializer(required=False)
+    heartbeat_timeout = NumberField(
+        default=_model_default("heartbeat_timeout"),
+        validators=[validate_positive],
+        help_text="Seconds without a state message before the robot counts as offline.",
+    )
+    switch_teleop = serializers.BooleanField(
+        default=_model_default("switch_teleop"),
+        help_text="true puts the robot in teleop, false takes it out.",
+    )
+    vda5050 = Vda5050IdentitySerializer(required=False)
+
+
+class RobotCreateSerializer(ObjectNameSerializer, RobotSpecSerializer):
+    """A robot's spec plus the name (or name prefix) of the new robot."""
+
+
+class TeleopQuerySerializer(serializers.Serializer):
+    params = serializers.ChoiceField(choices=TeleopAction.choices, help_text="START or STOP teleop.")
+
+
+# --- what a client gets ---------------------------------------------------------------------------------
+
+
+class RobotBatterySerializer(serializers.Serializer):
+    critical_level = serializers.FloatField(source="battery_critical_level")
+    recommended_minimum = serializers.FloatField(source="battery_recommended_minimum", allow_null=True)
+    recommended_maximum = serializers.FloatField(source="battery_recommended_maximum", allow_null=True)
+
+
+class RobotVda5050Serializer(serializers.Serializer):
+    interface_name = serializers.CharField()
+    manufacturer = serializers.CharField()
+    serial_number = serializers.CharField()
+    version = serializers.ChoiceField(source="protocol_version", choices=ProtocolVersion.choices)
+    instant_actions_key = serializers.ChoiceField(choices=InstantActionsKey.choices)
+
+
+class SoftwareVersionSerializer(serializers.Serializer):
+    os = serializers.CharField(default="")
+    app = serializers.CharField(default="")
+
+
+class HardwareVersionSerializer(serializers.Serializer):
+    manufacturer = serializers.CharField(default="", help_text="From the robot's state messages.")
+    serial_number = serializers.CharField(default="", help_text="From the robot's state messages.")
+
+
+class FactsheetSerializer(serializers.Serializer):
+    agv_class = serializers.ChoiceField(choices=AgvClass.choices, help_text="From the robot's factsheet.")
+    speed_max = serializers.FloatField(help_text="From the robot's factsheet; -1 until it has sent one.")
+
+
+class RobotStatusSerializer(serializers.Serializer):
+    """What the robot reports, as the dispatch engine last recorded it."""
+
+    pose = serializers.SerializerMethodField()
+    position_initialized = serializers.BooleanField()
+    software_version = SoftwareVersionSerializer()
+    hardware_version = HardwareVersionSerializer()
+    factsheet = FactsheetSerializer(source="*")
+    online = serializers.BooleanField()
+    battery_level = serializers.FloatField()
+    state = serializers.ChoiceField(choices=RobotState.choices)
+    info_messages = serializers.JSONField(allow_null=True)
+    errors = serializers.JSONField()
+
+    @extend_schema_field(Pose2DSerializer)
+    def get_pose(self, robot: Robot) -> dict[str, Any]:
+        return Pose2DSerializer(
+            {"x": robot.pose_x, "y": robot.pose_y, "theta": robot.pose_theta, "map_id": robot.pose_map_id}
+        ).data
+
+
+class RobotSerializer(serializers.Serializer):
+    """A robot: its spec fields, name, status and lifecycle."""
+
+    labels = serializers.ListField(child=serializers.CharField())
+    battery = RobotBatterySerializer(source="*")
+    heartbeat_timeout = serializers.FloatField(help_text="Seconds.")
+    switch_teleop = serializers.BooleanField()
+    vda5050 = RobotVda5050Serializer(source="*")
+    name = serializers.CharField()
+    status = RobotStatusSerializer(source="*")
+    lifecycle = serializers.ChoiceField(choices=Lifecycle.choices)

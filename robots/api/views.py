@@ -1,0 +1,201 @@
+"""Robot endpoints: thin methods that validate input, call a selector or service, and serialize."""
+
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import OpenApiExample, OpenApiResponse, extend_schema, extend_schema_view
+from rest_framework import viewsets
+from rest_framework.decorators import action
+from rest_framework.request import Request
+from rest_framework.response import Response
+
+from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, QueryValidationError, bad_request
+from robots.api.serializers import (
+    RobotCreateSerializer,
+    RobotSerializer,
+    RobotSpecSerializer,
+    TeleopQuerySerializer,
+)
+from robots.choices import TeleopAction
+from robots.filters import RobotFilter
+from robots.models import Robot
+from robots.selectors import robot_get, robot_list
+from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
+
+README_ROBOT = {"labels": [], "battery": {"critical_level": 0.1}, "heartbeat_timeout": 30, "name": "carter01"}
+ROBOT_EXAMPLE = OpenApiExample(
+    "carter01",
+    response_only=True,
+    value={
+        "labels": [],
+        "battery": {"critical_level": 0.1, "recommended_minimum": None, "recommended_maximum": None},
+        "heartbeat_timeout": 30.0,
+        "switch_teleop": False,
+        "vda5050": {
+            "interface_name": "uagv",
+            "manufacturer": "RobotCompany",
+            "serial_number": "carter01",
+            "version": "2.0.0",
+            "instant_actions_key": "actions",
+        },
+        "name": "carter01",
+        "status": {
+            "pose": {
+                "x": 4.0,
+                "y": 5.0,
+                "theta": 0.0,
+                "map_id": "map",
+                "allowedDeviationXY": 0.1,
+                "allowedDeviationTheta": 0.0,
+            },
+            "position_initialized": True,
+            "software_version": {"os": "", "app": ""},
+            "hardware_version": {"manufacturer": "RobotCompany", "serial_number": "carter01"},
+            "factsheet": {"agv_class": "CARRIER", "speed_max": 1.0},
+            "online": True,
+            "battery_level": 42.0,
+            "state": "IDLE",
+            "info_messages": None,
+            "errors": {},
+        },
+        "lifecycle": "ALIVE",
+    },
+)
+NOT_FOUND_EXAMPLE = OpenApiExample(
+    "Robot not found", value={"detail": 'Did not find "robot" with name "carter99"'}, status_codes=["400"]
+)
+NOT_FOUND_TO_CHANGE_EXAMPLE = OpenApiExample(
+    "Robot not found", value={"detail": "Could not find object carter99"}, status_codes=["400"]
+)
+DELETED_EXAMPLE = OpenApiExample("Deleted", value={"detail": "carter01 is PENDING_DELETE"})
+
+
+@extend_schema_view(
+    list=extend_schema(
+        operation_id="robot_list",
+        summary="List robots",
+        description="All robots, ordered by name, narrowed by the filters (combined with AND).",
+        responses={200: RobotSerializer(many=True), 400: bad_request(SCHEMA_ERROR_EXAMPLE)},
+        examples=[ROBOT_EXAMPLE],
+    ),
+    create=extend_schema(
+        operation_id="robot_create",
+        summary="Create a robot",
+        description=(
+            "Creates a robot. Without a name or prefix it gets a random id as name. The robot's name is its "
+            "VDA 5050 serial number unless vda5050.serial_number says otherwise."
+        ),
+        request=RobotCreateSerializer,
+        responses={
+            200: RobotSerializer,
+            400: bad_request(
+                OpenApiExample(
+                    "Duplicate",
+                    value={"detail": "Object robot with name carter01 already exists"},
+                    status_codes=["400"],
+                ),
+                SCHEMA_ERROR_EXAMPLE,
+            ),
+        },
+        examples=[OpenApiExample("README robot", value=README_ROBOT, request_only=True), ROBOT_EXAMPLE],
+    ),
+    retrieve=extend_schema(
+        operation_id="robot_get",
+        summary="Get a robot",
+        responses={200: RobotSerializer, 400: bad_request(NOT_FOUND_EXAMPLE)},
+        examples=[ROBOT_EXAMPLE],
+    ),
+    update=extend_schema(
+        operation_id="robot_update",
+        summary="Replace a robot's spec",
+        description="Replaces the whole spec: fields the body omits go back to their defaults.",
+        request=RobotSpecSerializer,
+        responses={200: RobotSerializer, 400: bad_request(NOT_FOUND_TO_CHANGE_EXAMPLE, SCHEMA_ERROR_EXAMPLE)},
+        examples=[
+            OpenApiExample(
+                "Shorter heartbeat",
+                value={"labels": ["warehouse"], "heartbeat_timeout": 10},
+                request_only=True,
+            ),
+            ROBOT_EXAMPLE,
+        ],
+    ),
+    destroy=extend_schema(
+        operation_id="robot_delete",
+        summary="Delete a robot",
+        description=(
+            "Marks the robot PENDING_DELETE. It is removed at once, or, if it is running a mission, once the "
+            "dispatch engine has failed that mission."
+        ),
+        responses={200: DETAIL_RESPONSE, 400: bad_request(NOT_FOUND_TO_CHANGE_EXAMPLE)},
+        examples=[DELETED_EXAMPLE],
+    ),
+)
+class RobotViewSet(viewsets.GenericViewSet):
+    """Robots. `queryset` and `filterset_class` describe the endpoints for the OpenAPI schema; reads go
+    through the selectors, which apply the same RobotFilter."""
+
+    queryset = Robot.objects.all()
+    serializer_class = RobotSerializer
+    filterset_class = RobotFilter
+    lookup_field = "name"
+    lookup_value_regex = "[^/]+"
+
+    def list(self, request: Request) -> Response:
+        return Response(RobotSerializer(robot_list(filters=request.query_params), many=True).data)
+
+    def create(self, request: Request) -> Response:
+        body = RobotCreateSerializer(data=request.data)
+        body.is_valid(raise_exception=True)
+        spec = dict(body.validated_data)
+        robot = robot_create(name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec)
+        return Response(RobotSerializer(robot).data)
+
+    def retrieve(self, request: Request, name: str) -> Response:
+        return Response(RobotSerializer(robot_get(name=name)).data)
+
+    def update(self, request: Request, name: str) -> Response:
+        body = RobotSpecSerializer(data=request.data)
+        body.is_valid(raise_exception=True)
+        robot = robot_update_spec(robot=robot_get(name=name, to_change=True), spec=body.validated_data)
+        return Response(RobotSerializer(robot).data)
+
+    def destroy(self, request: Request, name: str) -> Response:
+        robot_delete(robot=robot_get(name=name, to_change=True))
+        return Response({"detail": f"{name} is PENDING_DELETE"})
+
+    @extend_schema(
+        operation_id="robot_teleop",
+        summary="Start or stop teleop",
+        description=(
+            "START puts the robot in teleop (allowed when it is IDLE, ON_TASK, MAP_DEPLOYMENT or TELEOP); "
+            "STOP takes it out. The dispatch engine sends the robot startTeleop or stopTeleop."
+        ),
+        request=None,
+        parameters=[TeleopQuerySerializer],
+        responses={
+            200: OpenApiResponse(
+                OpenApiTypes.STR,
+                examples=[OpenApiExample("START", value="START teleop action received.")],
+            ),
+            400: bad_request(
+                NOT_FOUND_EXAMPLE,
+                OpenApiExample(
+                    "Not allowed",
+                    value={
+                        "message": "Robot carter01 is in CHARGING and request cannot be satisfied: "
+                        "teleop can only start from IDLE, MAP_DEPLOYMENT, ON_TASK, TELEOP.",
+                        "error_code": "USAGE",
+                    },
+                    status_codes=["400"],
+                ),
+            ),
+        },
+        filters=False,
+    )
+    @action(detail=True, methods=["post"])
+    def teleop(self, request: Request, name: str) -> Response:
+        query = TeleopQuerySerializer(data=request.query_params)
+        if not query.is_valid():
+            raise QueryValidationError(query.errors)
+        teleop_action = TeleopAction(query.validated_data["params"])
+        robot_teleop(robot=robot_get(name=name), action=teleop_action)
+        return Response(f"{teleop_action} teleop action received.")

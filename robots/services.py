@@ -1,0 +1,169 @@
+"""Changes to robots. Each runs in one transaction, locks the row it changes, and wakes the dispatch engine
+for the robot (after commit) so that the engine reacts to the change."""
+
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from django.conf import settings
+from django.db import IntegrityError, transaction
+
+from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
+from missions.choices import MissionState
+from missions.models import Mission
+from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, TeleopAction
+from robots.models import InstantAction, Robot
+from vda5050.models import ActionType
+from vda5050.orders import new_action_id
+from workers import livestate
+from workers.steps import request_steps
+from workers.wake import wake_robot
+
+FACTSHEET_REQUEST = ActionType.FACTSHEET_REQUEST.value
+START_TELEOP = ActionType.START_TELEOP.value
+STOP_TELEOP = ActionType.STOP_TELEOP.value
+
+SPEC_KEYS = frozenset({"labels", "battery", "heartbeat_timeout", "switch_teleop", "vda5050"})
+
+
+def robot_create(*, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Robot:
+    """A new robot from a spec in the API's shape; omitted spec fields take their defaults.
+
+    Without a name the robot is named `<prefix>-<random id>` or a random id. A duplicate name raises the
+    reference's ObjectError; a VDA 5050 identity another robot already uses raises a UsageError.
+    """
+    robot_name = object_name_for_create(name=name, prefix=prefix, what="Robot name")
+    fields = _robot_spec_fields(spec, robot_name=robot_name)
+    robot = Robot(name=robot_name, **fields)
+    try:
+        with transaction.atomic():
+            robot.save(force_insert=True)
+            if settings.DISPATCH_REQUEST_FACTSHEET:
+                _queue_instant_action(robot, FACTSHEET_REQUEST)
+            wake_robot(robot.name)
+    except IntegrityError as error:
+        if Robot.objects.filter(name=robot_name).exists():
+            raise ObjectError.exists("robot", robot_name) from error
+        raise _identity_taken(fields) from error
+    return robot
+
+
+def robot_update_spec(*, robot: Robot, spec: Mapping[str, Any]) -> Robot:
+    """Replace the robot's whole spec (PUT): fields the spec omits go back to their defaults."""
+    fields = _robot_spec_fields(spec, robot_name=robot.name)
+    try:
+        with transaction.atomic():
+            locked = lock_row(robot)
+            for field, value in fields.items():
+                setattr(locked, field, value)
+            locked.save(update_fields=[*fields, "updated_at"])
+            wake_robot(locked.name)
+    except IntegrityError as error:
+        raise _identity_taken(fields) from error
+    return locked
+
+
+def robot_delete(*, robot: Robot) -> Robot | None:
+    """Mark the robot PENDING_DELETE and remove it, at once unless a mission of it is RUNNING: then the
+    engine fails that mission and removes the robot. Returns the robot while it remains, else None.
+
+    Queued missions of the robot stay PENDING, as in the reference.
+    """
+    with transaction.atomic():
+        locked = lock_row(robot)
+        wake_robot(locked.name)
+        if Mission.objects.filter(robot=locked.name, state=MissionState.RUNNING).exists():
+            locked.lifecycle = Lifecycle.PENDING_DELETE
+            locked.save(update_fields=["lifecycle", "updated_at"])
+            return locked
+        locked.delete()
+        transaction.on_commit(lambda: livestate.forget(locked.name))
+    return None
+
+
+def robot_teleop(*, robot: Robot, action: TeleopAction) -> Robot:
+    """Ask for teleop to start or stop; the engine sends the robot startTeleop or stopTeleop."""
+    with transaction.atomic():
+        locked = lock_row(robot)
+        if action == TeleopAction.START and locked.state not in TELEOP_ALLOWED_STATES:
+            allowed = ", ".join(sorted(TELEOP_ALLOWED_STATES))
+            raise UsageError(
+                f"Robot {locked.name} is in {locked.state} and request cannot be satisfied: "
+                f"teleop can only start from {allowed}."
+            )
+        locked.switch_teleop = action == TeleopAction.START
+        locked.save(update_fields=["switch_teleop", "updated_at"])
+        _queue_instant_action(locked, START_TELEOP if locked.switch_teleop else STOP_TELEOP)
+        wake_robot(locked.name)
+    return locked
+
+
+def robot_request_factsheet(*, name: str) -> None:
+    """Ask the robot for its factsheet (sent by its next step), unless a request is already waiting."""
+    with transaction.atomic():
+        robot = Robot.objects.select_for_update().filter(name=name).first()
+        if robot is None:
+            return
+        waiting = robot.instant_actions.filter(action_type=FACTSHEET_REQUEST, status__isnull=True)
+        if not waiting.exists():
+            _queue_instant_action(robot, FACTSHEET_REQUEST)
+        wake_robot(name)
+
+
+def robot_check_heartbeats(*, now: float | None = None) -> list[str]:
+    """Mark offline every online robot silent for longer than its heartbeat_timeout; returns their names."""
+    now = time.time() if now is None else now
+    online = dict(Robot.objects.filter(online=True).values_list("name", "heartbeat_timeout"))
+    last_seen = livestate.last_seen(list(online))
+    silent = [name for name, timeout in online.items() if (last_seen[name] or 0.0) + timeout < now]
+    if silent:
+        Robot.objects.filter(name__in=silent).update(online=False)
+        for name in silent:
+            livestate.mark_offline(name)
+        request_steps(silent)
+    return silent
+
+
+def _queue_instant_action(robot: Robot, action_type: str) -> InstantAction:
+    """Put an instant action in the robot's outbox; the robot's next step sends it and tracks it."""
+    return InstantAction.objects.create(
+        action_id=new_action_id(f"{robot.name}-{action_type}"), robot=robot, action_type=action_type
+    )
+
+
+def _robot_spec_fields(spec: Mapping[str, Any], *, robot_name: str) -> dict[str, Any]:
+    """Robot model fields from a spec in the API's shape, with the defaults of the fields it omits."""
+    unknown = set(spec) - SPEC_KEYS
+    if unknown:
+        raise UsageError(f"Unknown robot spec fields {sorted(unknown)}; allowed: {sorted(SPEC_KEYS)}.")
+    battery = spec.get("battery") or {}
+    vda5050 = spec.get("vda5050") or {}
+    return {
+        "labels": list(spec.get("labels", _default("labels"))),
+        "battery_critical_level": battery.get("critical_level", _default("battery_critical_level")),
+        "battery_recommended_minimum": battery.get(
+            "recommended_minimum", _default("battery_recommended_minimum")
+        ),
+        "battery_recommended_maximum": battery.get(
+            "recommended_maximum", _default("battery_recommended_maximum")
+        ),
+        "heartbeat_timeout": spec.get("heartbeat_timeout", _default("heartbeat_timeout")),
+        "switch_teleop": spec.get("switch_teleop", _default("switch_teleop")),
+        "interface_name": vda5050.get("interface_name", _default("interface_name")),
+        "manufacturer": vda5050.get("manufacturer", _default("manufacturer")),
+        # The reference's topics use the robot name as serial number.
+        "serial_number": vda5050.get("serial_number", robot_name),
+        "protocol_version": vda5050.get("version", _default("protocol_version")),
+        "instant_actions_key": vda5050.get("instant_actions_key", _default("instant_actions_key")),
+    }
+
+
+def _default(field: str) -> Any:
+    return Robot._meta.get_field(field).get_default()
+
+
+def _identity_taken(fields: Mapping[str, Any]) -> UsageError:
+    return UsageError(
+        f"Another robot already uses the VDA 5050 identity interface_name={fields['interface_name']}, "
+        f"manufacturer={fields['manufacturer']}, serial_number={fields['serial_number']}."
+    )

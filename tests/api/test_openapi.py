@@ -1,0 +1,157 @@
+"""The OpenAPI schema (/openapi.json) and the Swagger UI (/docs): valid, complete, and served offline."""
+
+import json
+import re
+
+import pytest
+from drf_spectacular.drainage import GENERATOR_STATS
+from drf_spectacular.generators import SchemaGenerator
+from drf_spectacular.validation import validate_schema
+
+from tests.api.readme import README_MISSIONS, README_ROBOT
+
+ENDPOINTS = {
+    "/robot": {"get", "post"},
+    "/robot/{name}": {"get", "put", "delete"},
+    "/robot/{name}/teleop": {"post"},
+    "/mission": {"get", "post"},
+    "/mission/{name}": {"get", "delete"},
+    "/mission/{name}/cancel": {"post"},
+    "/mission/{name}/update": {"post"},
+    "/health": {"get"},
+    "/behaviors": {"get"},
+}
+ROBOT_FILTERS = {
+    "min_battery",
+    "max_battery",
+    "state",
+    "online",
+    "position_initialized",
+    "names",
+    "robot_type",
+}
+MISSION_FILTERS = {"state", "started_after", "started_before", "robot", "most_recent"}
+
+
+@pytest.fixture(scope="module")
+def schema() -> dict:
+    return SchemaGenerator().get_schema(request=None, public=True)
+
+
+def query_parameters(operation: dict) -> dict[str, dict]:
+    return {
+        parameter["name"]: parameter for parameter in operation["parameters"] if parameter["in"] == "query"
+    }
+
+
+def request_examples(operation: dict) -> dict[str, object]:
+    examples = operation["requestBody"]["content"]["application/json"]["examples"]
+    return {example["summary"]: example["value"] for example in examples.values()}
+
+
+def test_schema_is_valid_openapi(schema):
+    validate_schema(schema)
+
+
+def test_schema_generation_has_no_warnings():
+    GENERATOR_STATS.reset()
+
+    SchemaGenerator().get_schema(request=None, public=True)
+
+    assert not GENERATOR_STATS, "drf-spectacular warned while generating the schema (see stderr)"
+
+
+def test_every_endpoint_is_documented_with_a_summary_and_a_400(schema):
+    assert {path: set(operations) for path, operations in schema["paths"].items()} == ENDPOINTS
+    for operations in schema["paths"].values():
+        for operation in operations.values():
+            assert operation["summary"]
+            assert "200" in operation["responses"]
+    for path, operations in schema["paths"].items():
+        if path not in {"/health", "/behaviors"}:
+            assert all("400" in operation["responses"] for operation in operations.values()), path
+
+
+def test_every_operation_has_a_success_example(schema):
+    for path, operations in schema["paths"].items():
+        for method, operation in operations.items():
+            success = operation["responses"]["200"]["content"]["application/json"]
+            request = operation.get("requestBody", {}).get("content", {}).get("application/json", {})
+            assert success.get("examples") or request.get("examples"), f"{method.upper()} {path}"
+
+
+def test_every_reference_resolves(schema):
+    text = repr(schema)
+    for reference in set(re.findall(r"#/components/schemas/(\w+)", text)):
+        assert reference in schema["components"]["schemas"], reference
+
+
+def test_filters_are_documented(schema):
+    robot_filters = query_parameters(schema["paths"]["/robot"]["get"])
+    mission_filters = query_parameters(schema["paths"]["/mission"]["get"])
+
+    assert set(robot_filters) == ROBOT_FILTERS
+    assert set(mission_filters) == MISSION_FILTERS
+    assert all(
+        parameter.get("description") for parameter in [*robot_filters.values(), *mission_filters.values()]
+    )
+    assert robot_filters["names"]["schema"]["type"] == "array"
+    assert robot_filters["names"]["explode"] is True
+    assert {"ARM", "AMR", "FORKLIFT", "HUMANOID"} <= set(robot_filters["robot_type"]["schema"]["enum"])
+    assert robot_filters["online"]["schema"]["type"] == "boolean"
+    assert mission_filters["started_after"]["schema"]["format"] == "date-time"
+    assert mission_filters["most_recent"]["schema"]["type"] == "integer"
+
+
+def test_teleop_takes_its_action_in_the_params_query_parameter(schema):
+    parameters = query_parameters(schema["paths"]["/robot/{name}/teleop"]["post"])
+
+    assert set(parameters) == {"params"}
+    assert parameters["params"]["required"] is True
+    assert parameters["params"]["schema"]["enum"] == ["START", "STOP"]
+
+
+def test_the_readme_examples_are_the_documented_request_examples(schema):
+    assert request_examples(schema["paths"]["/mission"]["post"]) == README_MISSIONS
+    assert list(request_examples(schema["paths"]["/robot"]["post"]).values()) == [README_ROBOT]
+
+
+def test_mission_nodes_document_every_kind(schema):
+    properties = schema["components"]["schemas"]["MissionNodeRequest"]["properties"]
+
+    assert set(properties) == {
+        "name",
+        "parent",
+        "selector",
+        "sequence",
+        "route",
+        "move",
+        "action",
+        "notify",
+        "constant",
+    }
+
+
+@pytest.mark.django_db
+def test_openapi_json_is_served(api):
+    response = api.get("/openapi.json")
+
+    assert response.status_code == 200
+    assert response["Content-Type"].startswith("application/vnd.oai.openapi+json")
+    assert set(json.loads(response.content)["paths"]) == set(ENDPOINTS)
+
+
+@pytest.mark.django_db
+def test_docs_render_swagger_ui_from_local_static_files(api):
+    response = api.get("/docs")
+
+    assert response.status_code == 200
+    html = response.content.decode()
+    assert "swagger-ui" in html
+    assert not re.search(r"(src|href)=\"https?://", html)
+    assert "cdn" not in html.lower()
+    scripts = re.findall(r'src="([^"]+\.js)"', html)
+    assert scripts
+    for script in scripts:
+        assert script.startswith("/static/")
+        assert api.get(script).status_code == 200

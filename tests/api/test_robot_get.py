@@ -1,0 +1,68 @@
+"""GET /robot/{name}."""
+
+import pytest
+
+from tests.factories import RobotFactory
+
+pytestmark = pytest.mark.django_db
+
+
+def test_returns_the_robot_with_its_status(api):
+    RobotFactory(
+        name="carter01",
+        pose_x=4.0,
+        pose_y=5.0,
+        pose_theta=1.5,
+        pose_map_id="map",
+        online=True,
+        battery_level=42.0,
+        state="ON_TASK",
+        hardware_version={"manufacturer": "RobotCompany", "serial_number": "carter01"},
+        software_version={"os": "linux"},
+        agv_class="FORKLIFT",
+        speed_max=1.5,
+        info_messages={"info": "charging soon"},
+        position_initialized=True,
+    )
+
+    response = api.get("/robot/carter01")
+
+    assert response.status_code == 200
+    assert response.json()["status"] == {
+        "pose": {
+            "x": 4.0,
+            "y": 5.0,
+            "theta": 1.5,
+            "map_id": "map",
+            "allowedDeviationXY": 0.1,
+            "allowedDeviationTheta": 0.0,
+        },
+        "position_initialized": True,
+        "software_version": {"os": "linux", "app": ""},
+        "hardware_version": {"manufacturer": "RobotCompany", "serial_number": "carter01"},
+        "factsheet": {"agv_class": "FORKLIFT", "speed_max": 1.5},
+        "online": True,
+        "battery_level": 42.0,
+        "state": "ON_TASK",
+        "info_messages": {"info": "charging soon"},
+        "errors": {},
+    }
+
+
+def test_missing_robot_is_400_with_the_reference_message(api):
+    response = api.get("/robot/carter99")
+
+    assert response.status_code == 400
+    assert response.json() == {"detail": 'Did not find "robot" with name "carter99"'}
+
+
+def test_a_robot_pending_delete_is_still_returned(api):
+    RobotFactory(name="carter01", lifecycle="PENDING_DELETE")
+
+    assert api.get("/robot/carter01").json()["lifecycle"] == "PENDING_DELETE"
+
+
+def test_trailing_slash_is_not_a_route(api):
+    RobotFactory(name="carter01")
+
+    assert api.get("/robot/carter01/").status_code == 404

@@ -1,0 +1,300 @@
+"""The MQTT bridge: robots' messages in, live state to Redis, coalesced status to PostgreSQL, steps woken.
+
+Per state message it costs one parse and one pipelined Redis script call; the database sees one batched
+UPDATE per flush period for the robots whose status changed, and a Celery step is requested only when
+something the engine cares about changed (`missions.dispatch.engine_digest`). Several bridges may run at
+once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
+robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
+"""
+
+import logging
+import queue
+import time
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Any
+
+import orjson
+import paho.mqtt.client as mqtt
+from django.conf import settings
+from django.db import close_old_connections, connection
+from psycopg.types.json import Jsonb
+
+from missions.dispatch import engine_digest
+from robots.choices import AgvClass
+from robots.models import Robot
+from robots.services import robot_request_factsheet
+from vda5050.codec import parse_connection, parse_factsheet, parse_state, parse_visualization
+from vda5050.errors import ProtocolError
+from vda5050.models import ConnectionState, State
+from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_version_of, parse_topic
+from vda5050.topics import shared_subscription as shared_filter
+from workers import livestate, metrics
+from workers.mqtt import new_client
+from workers.steps import request_steps
+
+logger = logging.getLogger(__name__)
+
+SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUALIZATION)
+BATCH_LIMIT = 2000  # messages handled per pipeline round trip
+DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
+LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
+STATUS_COLUMNS = (
+    "battery_level",
+    "pose_x",
+    "pose_y",
+    "pose_theta",
+    "pose_map_id",
+    "position_initialized",
+    "hardware_version",
+    "errors",
+    "info_messages",
+)
+JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages"})
+
+
+@dataclass
+class RobotStatus:
+    """A robot's status as last written to PostgreSQL, and what is waiting to be written."""
+
+    written: dict[str, Any] = field(default_factory=dict)
+    pending: dict[str, Any] = field(default_factory=dict)
+    written_at: float = 0.0
+    last_state_at: datetime | None = None
+
+
+class RobotDirectory:
+    """Which robot a topic belongs to: (interface, major version, manufacturer, serial number) -> name."""
+
+    def __init__(self) -> None:
+        self._names: dict[RobotIdentity, str] = {}
+        self._loaded_at = float("-inf")
+
+    def name(self, identity: RobotIdentity) -> str | None:
+        name = self._names.get(identity)
+        if name is None and time.monotonic() - self._loaded_at > DIRECTORY_REFRESH_SECONDS:
+            self.reload()
+            name = self._names.get(identity)
+        return name
+
+    def reload(self) -> None:
+        rows = Robot.objects.values_list(
+            "name", "interface_name", "manufacturer", "serial_number", "protocol_version"
+        )
+        self._names = {
+            RobotIdentity(interface, major_version_of(version), manufacturer, serial): name
+            for name, interface, manufacturer, serial, version in rows
+        }
+        self._loaded_at = time.monotonic()
+
+
+class Bridge:
+    def __init__(self, share_group: str = "") -> None:
+        self.share_group = share_group
+        self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
+        self.directory = RobotDirectory()
+        self.status: dict[str, RobotStatus] = {}
+        self.client = new_client("bridge")
+        self.client.on_connect = self._on_connect
+        self.client.on_message = self._on_message
+        self._last_flush = time.monotonic()
+
+    # --- MQTT thread ---
+
+    def _on_connect(self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
+        """(Re)subscribe on every connect: a broker restart loses non-persistent sessions."""
+        if reason.is_failure:
+            logger.warning("bridge could not connect to MQTT broker: %s", reason)
+            return
+        filters = [
+            shared_filter(self.share_group, topic) if self.share_group else fleet_subscription(topic)
+            for topic in SUBSCRIBED_TOPICS
+        ]
+        client.subscribe([(topic_filter, 0) for topic_filter in filters])
+        logger.info("bridge connected, subscribed to %s", filters)
+
+    def _on_message(self, client: mqtt.Client, userdata: Any, message: mqtt.MQTTMessage) -> None:
+        self.inbox.put((message.topic, message.payload))
+
+    # --- processing thread ---
+
+    def run_forever(self) -> None:
+        self.directory.reload()
+        self.client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
+        self.client.loop_start()
+        try:
+            while True:
+                self.run_once(timeout=settings.BRIDGE_STATUS_FLUSH_SECONDS)
+        finally:
+            self.client.loop_stop()
+
+    def run_once(self, timeout: float) -> None:
+        """Handle whatever arrived (waiting up to `timeout` for something), flushing status when due."""
+        batch = self._drain(timeout)
+        close_old_connections()
+        if batch:
+            self.handle(batch)
+        if time.monotonic() - self._last_flush >= settings.BRIDGE_STATUS_FLUSH_SECONDS:
+            self.flush()
+
+    def _drain(self, timeout: float) -> list[tuple[str, bytes]]:
+        try:
+            batch = [self.inbox.get(timeout=timeout)]
+        except queue.Empty:
+            return []
+        while len(batch) < BATCH_LIMIT:
+            try:
+                batch.append(self.inbox.get_nowait())
+            except queue.Empty:
+                break
+        return batch
+
+    def handle(self, batch: list[tuple[str, bytes]]) -> None:
+        """Parse a batch, store states in one Redis pipeline, then act on what changed."""
+        pipe = livestate.client().pipeline(transaction=False)  # store_state calls only, results aligned
+        side = livestate.client().pipeline(transaction=False)  # counters, then last-seen and online marks
+        stored: list[str] = []  # robot names, in the order of the store_state calls on `pipe`
+        seen: dict[str, float] = {}
+        disconnected: list[str] = []
+        for topic, payload in batch:
+            try:
+                identity, kind = parse_topic(topic)
+                name = self.directory.name(identity)
+                if name is None:
+                    metrics.count(metrics.MESSAGES_INVALID, pipe=side, topic="unknown_robot")
+                    continue
+                metrics.count(metrics.MESSAGES_IN, pipe=side, topic=kind.value)
+                if kind == Topic.STATE:
+                    state = parse_state(payload)
+                    livestate.store_state(
+                        pipe,
+                        name=name,
+                        payload=payload,
+                        timestamp_ms=_timestamp_ms(state.timestamp),
+                        header_id=state.header_id,
+                        digest=engine_digest(state),
+                    )
+                    stored.append(name)
+                    seen[name] = time.time()
+                    self._remember_status(name, state)
+                elif kind == Topic.VISUALIZATION:
+                    position = parse_visualization(payload).agv_position
+                    if position is not None:
+                        self._pending(name).update(
+                            pose_x=position.x, pose_y=position.y, pose_theta=position.theta
+                        )
+                elif kind == Topic.CONNECTION:
+                    if parse_connection(payload).connection_state != ConnectionState.ONLINE:
+                        disconnected.append(name)
+                elif kind == Topic.FACTSHEET:
+                    self._store_factsheet(name, payload)
+            except ProtocolError as exc:
+                metrics.count(metrics.MESSAGES_INVALID, pipe=side, topic=topic.rsplit("/", 1)[-1][:32])
+                logger.warning("dropped malformed message on %s: %s", topic, exc)
+        if seen:
+            livestate.mark_seen(side, list(seen), max(seen.values()))
+            for name in seen:
+                side.sadd(livestate.ONLINE_SET, name)
+        stored_results = pipe.execute()
+        side_results = side.execute()
+        changed = {
+            name for name, result in zip(stored, stored_results, strict=True) if result == livestate.CHANGED
+        }
+        added = side_results[len(side_results) - len(seen) :]
+        came_online = [name for name, was_added in zip(seen, added, strict=True) if was_added]
+        self._act(changed, came_online, disconnected)
+
+    def _act(self, changed: set[str], came_online: list[str], disconnected: list[str]) -> None:
+        if came_online:
+            Robot.objects.filter(name__in=came_online).update(online=True)
+            for name in came_online:
+                if settings.DISPATCH_REQUEST_FACTSHEET:
+                    robot_request_factsheet(name=name)
+        for name in disconnected:
+            if livestate.mark_offline(name):
+                Robot.objects.filter(name=name).update(online=False)
+                changed.add(name)
+        request_steps(changed | set(came_online))
+
+    def _remember_status(self, name: str, state: State) -> None:
+        status = self.status.setdefault(name, RobotStatus())
+        position = state.agv_position
+        values: dict[str, Any] = {
+            "battery_level": state.battery_state.battery_charge,
+            "hardware_version": {"manufacturer": state.manufacturer, "serial_number": state.serial_number},
+            "errors": {
+                error.error_type: {
+                    "level": error.error_level.value,
+                    "description": error.error_description,
+                    "references": {r.reference_key: r.reference_value for r in error.error_references or ()},
+                }
+                for error in state.errors
+            },
+            "info_messages": _user_info(state),
+        }
+        if position is not None:
+            values.update(
+                pose_x=position.x,
+                pose_y=position.y,
+                pose_theta=position.theta,
+                pose_map_id=position.map_id,
+                position_initialized=position.position_initialized,
+            )
+        status.pending.update(values)
+        status.last_state_at = datetime.now(UTC)
+
+    def _pending(self, name: str) -> dict[str, Any]:
+        return self.status.setdefault(name, RobotStatus()).pending
+
+    def _store_factsheet(self, name: str, payload: bytes) -> None:
+        factsheet = parse_factsheet(payload)
+        agv_class = str(factsheet.type_specification.agv_class)
+        Robot.objects.filter(name=name).update(
+            factsheet=orjson.loads(payload),
+            agv_class=agv_class if agv_class in AgvClass.values else AgvClass.CARRIER,
+            speed_max=factsheet.physical_parameters.speed_max,
+        )
+
+    def flush(self) -> None:
+        """Write each robot's changed status in one statement; unchanged robots cost nothing."""
+        now = time.monotonic()
+        groups: dict[tuple[str, ...], list[tuple[Any, ...]]] = {}
+        for name, status in self.status.items():
+            changed = {
+                key: value for key, value in status.pending.items() if status.written.get(key) != value
+            }
+            due = status.last_state_at is not None and now - status.written_at >= LAST_STATE_AT_PERIOD
+            if not changed and not due:
+                continue
+            status.written.update(status.pending)
+            status.pending = {}
+            status.written_at = now
+            columns = tuple(column for column in STATUS_COLUMNS if column in status.written)
+            values = (Jsonb(status.written[c]) if c in JSON_COLUMNS else status.written[c] for c in columns)
+            groups.setdefault(columns, []).append((*values, status.last_state_at, name))
+        self._last_flush = now
+        with connection.cursor() as cursor:
+            for columns, rows in groups.items():
+                assignments = ", ".join(f"{column} = %s" for column in (*columns, "last_state_at"))
+                cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", rows)
+
+
+def _timestamp_ms(timestamp: str) -> int:
+    try:
+        moment = datetime.fromisoformat(timestamp.replace("Z", "+00:00"))
+    except ValueError:
+        raise ProtocolError("timestamp", f"{timestamp!r} is not an ISO 8601 timestamp") from None
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    return int(moment.timestamp() * 1000)
+
+
+def _user_info(state: State) -> Any:
+    """The reference's `info_messages`: the JSON of the robot's `user_info` information entry."""
+    for info in state.information or ():
+        if info.info_type == "user_info" and info.info_description:
+            try:
+                return orjson.loads(info.info_description)
+            except orjson.JSONDecodeError:
+                return info.info_description
+    return None

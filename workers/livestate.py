@@ -1,0 +1,98 @@
+"""Robots' live state in Redis: the latest VDA 5050 state, who is online, when each robot was last heard.
+
+The bridge writes here on every message (cheap, in memory); the dispatch step reads from here instead of
+PostgreSQL, so the database sees a write only when something a user or the engine cares about changed.
+"""
+
+from functools import cache
+
+import redis
+from django.conf import settings
+
+PREFIX = "fleet"
+ONLINE_SET = f"{PREFIX}:online"
+LAST_SEEN = f"{PREFIX}:last-seen"
+
+# Stores a state unless an equal-or-newer one is already stored (reordered or duplicated messages are
+# harmless), and reports whether what the engine cares about (its digest) changed.
+# Messages are ordered by the robot's (timestamp, headerId); a restarted robot resets headerId, not time.
+# KEYS: robot hash. ARGV: payload, timestamp (ms), headerId, digest. Returns 0 stale, 1 same, 2 changed.
+_STORE_STATE = """
+local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'digest')
+local ts, hid = tonumber(ARGV[2]), tonumber(ARGV[3])
+if old[1] then
+  local old_ts, old_hid = tonumber(old[1]), tonumber(old[2])
+  if old_ts > ts or (old_ts == ts and old_hid >= hid) then return 0 end
+end
+redis.call('HSET', KEYS[1], 'state', ARGV[1], 'ts', ARGV[2], 'hid', ARGV[3], 'digest', ARGV[4])
+if old[3] == ARGV[4] then return 1 end
+return 2
+"""
+
+STALE, UNCHANGED, CHANGED = 0, 1, 2
+
+
+@cache
+def client() -> redis.Redis:
+    """One connection pool per process (redis-py pools are thread-safe and fork-aware)."""
+    return redis.Redis.from_url(settings.REDIS_URL)
+
+
+@cache
+def _store_state_script() -> "redis.commands.core.Script":
+    return client().register_script(_STORE_STATE)
+
+
+def robot_key(name: str) -> str:
+    return f"{PREFIX}:robot:{name}"
+
+
+def store_state(
+    pipe: redis.client.Pipeline, *, name: str, payload: bytes, timestamp_ms: int, header_id: int, digest: str
+) -> None:
+    """Queue the store on `pipe`; its result is STALE, UNCHANGED or CHANGED."""
+    _store_state_script()(
+        keys=[robot_key(name)], args=[payload, timestamp_ms, header_id, digest], client=pipe
+    )
+
+
+def latest_state(name: str) -> bytes | None:
+    return client().hget(robot_key(name), "state")
+
+
+def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:
+    pipe.zadd(LAST_SEEN, dict.fromkeys(names, at))
+
+
+def mark_online(name: str) -> bool:
+    """True if the robot was not online before (a reconnect)."""
+    return bool(client().sadd(ONLINE_SET, name))
+
+
+def mark_offline(name: str) -> bool:
+    """True if the robot was online before."""
+    return bool(client().srem(ONLINE_SET, name))
+
+
+def last_seen(names: list[str]) -> dict[str, float | None]:
+    if not names:
+        return {}
+    return dict(zip(names, client().zmscore(LAST_SEEN, names), strict=True))
+
+
+def forget(name: str) -> None:
+    """Drop everything known about a deleted robot."""
+    pipe = client().pipeline()
+    pipe.delete(robot_key(name), header_key(name, "order"), header_key(name, "instantActions"))
+    pipe.srem(ONLINE_SET, name)
+    pipe.zrem(LAST_SEEN, name)
+    pipe.execute()
+
+
+def header_key(name: str, topic: str) -> str:
+    return f"{PREFIX}:header:{name}:{topic}"
+
+
+def next_header_id(name: str, topic: str) -> int:
+    """VDA 5050 headerId: one counter per robot and topic, +1 per message sent (resends included)."""
+    return int(client().incr(header_key(name, topic))) - 1

@@ -1,0 +1,76 @@
+"""Celery tasks: thin wrappers that call services and own only queueing and retry policy."""
+
+import logging
+
+import requests
+from celery import Task, shared_task
+from celery.signals import worker_ready
+from django.conf import settings
+
+from missions import selectors as mission_selectors
+from missions.services import mission_notify_finished, robot_step
+from robots.services import robot_check_heartbeats
+from workers import metrics, steps
+from workers.publish import publish
+
+logger = logging.getLogger(__name__)
+
+# The reference's retryable notify statuses.
+RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
+
+
+@shared_task(name="fleet.step_robot", ignore_result=True)
+def step_robot(name: str) -> None:
+    steps.step_started(name)
+    outcome = robot_step(name=name)
+    if outcome.address is not None:
+        publish(
+            robot=name,
+            address=outcome.address,
+            instant_actions_key=outcome.instant_actions_key,
+            messages=outcome.messages,
+        )
+    for mission, node in outcome.notifies:
+        run_notify.apply_async((mission, node), queue=settings.NOTIFY_QUEUE)
+    if outcome.rejections:
+        metrics.count(metrics.ORDER_REJECTIONS, by=outcome.rejections)
+    for mission in outcome.finished:
+        metrics.count(
+            metrics.MISSIONS_FINISHED, state=mission.state, failure_category=mission.failure_category or ""
+        )
+
+
+@shared_task(name="fleet.run_notify", bind=True, ignore_result=True, max_retries=None)
+def run_notify(self: Task, mission: str, node: str) -> None:
+    """POST the notify node's json_data to its url; retry retryable failures with exponential backoff."""
+    params = mission_selectors.notify_params(mission=mission, node=node)
+    if params is None:
+        return  # the mission ended or moved on meanwhile
+    try:
+        response = requests.post(params["url"], json=params.get("json_data") or {}, timeout=params["timeout"])
+    except requests.RequestException as exc:
+        ok, detail, retryable = False, f"Notify request failed: {exc}", True
+    else:
+        ok = response.status_code == 200
+        detail = f"Notify got HTTP {response.status_code} from {params['url']}"
+        retryable = response.status_code in RETRYABLE_STATUSES
+    if not ok and retryable and self.request.retries < settings.NOTIFY_RETRIES:
+        raise self.retry(countdown=settings.NOTIFY_BACKOFF_SECONDS * 2**self.request.retries)
+    mission_notify_finished(mission=mission, node=node, success=ok, error_msg=None if ok else detail)
+
+
+@shared_task(name="fleet.check_heartbeats", ignore_result=True)
+def check_heartbeats() -> None:
+    robot_check_heartbeats()
+
+
+@shared_task(name="fleet.sweep", ignore_result=True)
+def sweep() -> None:
+    """Step robots whose missions or messages wait on time: timeouts, deadlines, resends."""
+    steps.request_steps(mission_selectors.robots_due_for_step())
+
+
+@worker_ready.connect
+def _resume_after_restart(**kwargs: object) -> None:
+    """A worker killed mid-step loses that step: step every robot with work once at start."""
+    steps.request_steps(mission_selectors.robots_with_missions())
