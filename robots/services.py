@@ -76,8 +76,9 @@ def robot_delete(*, robot: Robot) -> Robot | None:
             locked.lifecycle = Lifecycle.PENDING_DELETE
             locked.save(update_fields=["lifecycle", "updated_at"])
             return locked
+        name = locked.name
         locked.delete()
-        transaction.on_commit(lambda: livestate.forget(locked.name))
+        transaction.on_commit(lambda: livestate.forget(name))
     return None
 
 

@@ -202,6 +202,9 @@ class MissionStatusSerializer(serializers.Serializer):
     end_timestamp = serializers.DateTimeField(allow_null=True)
     failure_reason = serializers.CharField(allow_null=True)
     failure_category = serializers.ChoiceField(choices=FailureCategory.choices, allow_null=True)
+    waiting_reason = serializers.CharField(
+        allow_null=True, help_text="Why a queued mission has not started yet, e.g. the robot is offline."
+    )
 
 
 class MissionSerializer(MissionSpecSerializer):

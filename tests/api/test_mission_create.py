@@ -108,6 +108,7 @@ def test_a_new_mission_has_every_node_pending_and_an_empty_status(api):
         "end_timestamp": None,
         "failure_reason": None,
         "failure_category": None,
+        "waiting_reason": None,
     }
     assert response.json()["lifecycle"] == "ALIVE"
 

@@ -36,6 +36,7 @@ def test_returns_the_mission_with_its_status(api):
         "end_timestamp": "2024-05-01T12:01:30Z",
         "failure_reason": "Mission timed out",
         "failure_category": "TIMEOUT",
+        "waiting_reason": None,
     }
 
 

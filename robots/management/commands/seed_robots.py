@@ -4,6 +4,7 @@ from typing import Any
 
 from django.core.management.base import BaseCommand, CommandError, CommandParser
 
+from fleet.api import UsageError
 from robots.models import Robot
 from robots.services import robot_create
 
@@ -41,7 +42,10 @@ class Command(BaseCommand):
         for name in wanted:
             if name in existing:
                 self.stdout.write(f"Skipped {name}: already exists.")
-            else:
+                continue
+            try:
                 robot_create(name=name, prefix=None, spec={})
-                self.stdout.write(self.style.SUCCESS(f"Created {name}."))
+            except UsageError as error:
+                raise CommandError(error.message) from error
+            self.stdout.write(self.style.SUCCESS(f"Created {name}."))
         self.stdout.write(f"{len(wanted) - len(existing)} created, {len(existing)} skipped.")

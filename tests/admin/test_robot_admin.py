@@ -1,0 +1,204 @@
+"""The robot admin as an operator uses it: lists, the change page, and actions that go through services."""
+
+from typing import Any
+
+import pytest
+from django.contrib import messages
+from django.contrib.messages import get_messages
+from django.http import HttpResponse
+from django.test import Client
+from django.urls import reverse
+
+from robots.admin import EDITABLE_SPEC_FIELDS
+from robots.choices import Lifecycle, RobotState
+from robots.models import Robot
+from tests.factories import MissionFactory, RobotFactory
+
+pytestmark = pytest.mark.django_db
+
+CHANGELIST = reverse("admin:robots_robot_changelist")
+ADD = reverse("admin:robots_robot_add")
+
+
+def change_url(robot: Robot) -> str:
+    return reverse("admin:robots_robot_change", args=[robot.name])
+
+
+def sent_messages(response: HttpResponse) -> list[tuple[int, str]]:
+    return [(message.level, message.message) for message in get_messages(response.wsgi_request)]
+
+
+def listed(response: HttpResponse) -> list[str]:
+    return [robot.name for robot in response.context["cl"].result_list]
+
+
+def spec_form(**fields: Any) -> dict[str, Any]:
+    """A valid POST of the robot add/change form, default spec unless overridden."""
+    return {
+        "labels": "[]",
+        "battery_critical_level": "10.0",
+        "battery_recommended_minimum": "",
+        "battery_recommended_maximum": "",
+        "heartbeat_timeout": "30.0",
+        **fields,
+    }
+
+
+def test_changelist_shows_status_columns(admin_client: Client):
+    RobotFactory(name="carter01", state=RobotState.ON_TASK, online=True, battery_level=87.5, pose_x=1.25)
+
+    response = admin_client.get(CHANGELIST)
+
+    assert response.status_code == 200
+    assert listed(response) == ["carter01"]
+    content = response.content.decode()
+    assert "87.5" in content
+    assert "(1.25, 0.00, 0.00)" in content
+
+
+def test_changelist_filters_by_state_online_and_lifecycle(admin_client: Client):
+    RobotFactory(name="busy", state=RobotState.ON_TASK, online=True)
+    RobotFactory(name="idle", state=RobotState.IDLE, online=False)
+    RobotFactory(name="leaving", lifecycle=Lifecycle.PENDING_DELETE)
+
+    assert listed(admin_client.get(CHANGELIST, {"state__exact": "ON_TASK"})) == ["busy"]
+    assert listed(admin_client.get(CHANGELIST, {"online__exact": "1"})) == ["busy"]
+    assert listed(admin_client.get(CHANGELIST, {"lifecycle__exact": "PENDING_DELETE"})) == ["leaving"]
+
+
+def test_changelist_searches_by_name(admin_client: Client):
+    RobotFactory(name="carter01")
+    RobotFactory(name="carter02")
+    RobotFactory(name="forklift01")
+
+    assert listed(admin_client.get(CHANGELIST, {"q": "carter"})) == ["carter01", "carter02"]
+
+
+def test_change_page_edits_only_spec_fields(admin_client: Client):
+    robot = RobotFactory(battery_level=42.0)
+
+    response = admin_client.get(change_url(robot))
+
+    assert response.status_code == 200
+    assert set(response.context["adminform"].form.fields) == set(EDITABLE_SPEC_FIELDS)
+    assert "42.0" in response.content.decode()
+
+
+def test_change_updates_the_spec_through_the_service_and_ignores_status(
+    admin_client: Client, woken: list[str]
+):
+    robot = RobotFactory(battery_level=42.0, state=RobotState.IDLE)
+
+    response = admin_client.post(
+        change_url(robot),
+        spec_form(labels='["dock"]', heartbeat_timeout="12.5", battery_level="99", state="TELEOP"),
+    )
+
+    assert response.status_code == 302
+    robot.refresh_from_db()
+    assert (robot.labels, robot.heartbeat_timeout) == (["dock"], 12.5)
+    assert (robot.battery_level, robot.state) == (42.0, RobotState.IDLE)
+    assert robot.serial_number == robot.name
+    assert woken == [robot.name]
+
+
+def test_change_rejects_what_the_api_rejects(admin_client: Client):
+    robot = RobotFactory()
+
+    response = admin_client.post(
+        change_url(robot), spec_form(labels='{"not": "a list"}', heartbeat_timeout="0")
+    )
+
+    assert response.status_code == 200
+    errors = response.context["adminform"].form.errors
+    assert set(errors) == {"labels", "heartbeat_timeout"}
+    robot.refresh_from_db()
+    assert (robot.labels, robot.heartbeat_timeout) == ([], 30.0)
+
+
+def test_add_creates_the_robot_through_the_service(admin_client: Client, woken: list[str]):
+    response = admin_client.post(ADD, spec_form(name="carter07", heartbeat_timeout="5"))
+
+    assert response.status_code == 302
+    robot = Robot.objects.get(name="carter07")
+    assert (robot.heartbeat_timeout, robot.serial_number, robot.switch_teleop) == (5.0, "carter07", False)
+    assert woken == ["carter07"]
+
+
+@pytest.mark.parametrize("name", ["has space", "carter01"])
+def test_add_refuses_invalid_or_taken_names(admin_client: Client, name: str):
+    RobotFactory(name="carter01")
+
+    response = admin_client.post(ADD, spec_form(name=name))
+
+    assert response.status_code == 200
+    assert set(response.context["adminform"].form.errors) == {"name"}
+    assert Robot.objects.count() == 1
+
+
+def test_add_reports_a_vda5050_identity_another_robot_uses(admin_client: Client):
+    RobotFactory(name="other", serial_number="carter09")
+
+    response = admin_client.post(ADD, spec_form(name="carter09"))
+
+    assert (response.status_code, response["Location"]) == (302, ADD)
+    assert list(Robot.objects.values_list("name", flat=True)) == ["other"]
+    ((level, message),) = sent_messages(response)
+    assert level == messages.ERROR
+    assert message.startswith("Another robot already uses the VDA 5050 identity")
+
+
+@pytest.mark.parametrize(
+    ("action", "before", "after"), [("start_teleop", False, True), ("stop_teleop", True, False)]
+)
+def test_teleop_actions_switch_teleop(admin_client: Client, action: str, before: bool, after: bool):
+    robots = [RobotFactory(switch_teleop=before), RobotFactory(switch_teleop=before)]
+
+    response = admin_client.post(CHANGELIST, {"action": action, "_selected_action": [r.name for r in robots]})
+
+    assert response.status_code == 302
+    assert [robot.switch_teleop for robot in Robot.objects.order_by("name")] == [after, after]
+    assert [level for level, _ in sent_messages(response)] == [messages.SUCCESS]
+
+
+def test_start_teleop_reports_robots_the_service_refuses(admin_client: Client):
+    charging = RobotFactory(name="charging", state=RobotState.CHARGING)
+    idle = RobotFactory(name="idle")
+
+    response = admin_client.post(
+        CHANGELIST, {"action": "start_teleop", "_selected_action": [charging.name, idle.name]}
+    )
+
+    assert response.status_code == 302
+    assert dict(Robot.objects.values_list("name", "switch_teleop")) == {"charging": False, "idle": True}
+    (success, warning) = sent_messages(response)
+    assert success == (messages.SUCCESS, "START teleop requested for 1 robot.")
+    assert warning[0] == messages.WARNING
+    assert warning[1].startswith("Robot charging is in CHARGING and request cannot be satisfied")
+
+
+def test_delete_removes_a_robot_without_a_running_mission(admin_client: Client):
+    robot = RobotFactory()
+
+    response = admin_client.post(reverse("admin:robots_robot_delete", args=[robot.name]), {"post": "yes"})
+
+    assert response.status_code == 302
+    assert not Robot.objects.filter(name=robot.name).exists()
+    assert [level for level, _ in sent_messages(response)] == [messages.SUCCESS]
+
+
+def test_bulk_delete_leaves_a_robot_with_a_running_mission_pending_delete(admin_client: Client):
+    busy = RobotFactory(name="busy", state=RobotState.ON_TASK)
+    MissionFactory(robot="busy", running=True)
+    free = RobotFactory(name="free")
+
+    response = admin_client.post(
+        CHANGELIST, {"action": "delete_selected", "_selected_action": [busy.name, free.name], "post": "yes"}
+    )
+
+    assert response.status_code == 302
+    assert list(Robot.objects.values_list("name", "lifecycle")) == [("busy", Lifecycle.PENDING_DELETE)]
+    assert (
+        messages.INFO,
+        "PENDING_DELETE until the engine has failed their running mission: busy.",
+    ) in sent_messages(response)
