@@ -1,0 +1,248 @@
+"""End-to-end harness: real bridge, worker, beat and simulator processes against the test database.
+
+The server processes start once per session (restartable by tests that kill them); each test starts its
+own simulator with robots named uniquely, so tests never see each other's robots. Every order and instant
+action published during the session is recorded and validated against the official JSON schema.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import orjson
+import paho.mqtt.client as mqtt
+import pytest
+from django.conf import settings
+from django.db import connection
+from rest_framework.test import APIClient
+
+from tests.vda5050.schemas import validate_message
+
+ROOT = Path(__file__).resolve().parents[2]
+PYTHON = sys.executable
+CELERY = str(Path(PYTHON).with_name("celery"))
+WAIT_SECONDS = 60.0  # generous: the machine is shared; nothing asserts on durations
+
+# Time is compressed so the suite stays fast: short beats, quick resends, fast robots.
+SERVER_ENV = {
+    "FLEET_BEAT_PERIOD": "0.2",
+    "FLEET_ORDER_RESEND_SECONDS": "1.0",
+    "FLEET_INSTANT_ACTION_RESEND_SECONDS": "1.0",
+    "FLEET_BRIDGE_FLUSH_SECONDS": "0.2",
+    "FLEET_NOTIFY_BACKOFF_SECONDS": "0.1",
+    "FLEET_VISIBILITY_TIMEOUT": "5",
+    "FLEET_LOG_LEVEL": "INFO",
+}
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float = WAIT_SECONDS, message: str = "") -> Any:
+    """Poll until `predicate` returns something truthy; fail the test with `message` otherwise."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.05)
+    pytest.fail(f"timed out waiting for {message or predicate}")
+
+
+@dataclass
+class Process:
+    name: str
+    argv: list[str]
+    env: dict[str, str]
+    log: Path
+    popen: subprocess.Popen[bytes] | None = None
+
+    def start(self) -> None:
+        with self.log.open("ab") as log:
+            self.popen = subprocess.Popen(
+                self.argv,
+                cwd=ROOT,
+                env=self.env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+
+    def send(self, sig: int) -> None:
+        if self.popen is not None and self.popen.poll() is None:
+            os.killpg(self.popen.pid, sig)
+
+    def kill(self, sig: int = signal.SIGKILL) -> None:
+        """Send `sig` (SIGKILL by default) and wait for the process to end."""
+        self.send(sig)
+        if self.popen is not None:
+            self.popen.wait(timeout=30)
+
+    def stop(self) -> None:
+        self.kill(signal.SIGTERM)
+
+    def restart(self) -> None:
+        self.kill()
+        self.start()
+
+
+@dataclass
+class Stack:
+    env: dict[str, str]
+    logs: Path
+    processes: dict[str, Process] = field(default_factory=dict)
+
+    def add(self, name: str, argv: list[str]) -> Process:
+        process = Process(name, argv, self.env, self.logs / f"{name}.log")
+        process.start()
+        self.processes[name] = process
+        return process
+
+    def stop(self) -> None:
+        for process in self.processes.values():
+            process.stop()
+
+
+class Recorder:
+    """Every order and instant action published on the broker during the session."""
+
+    def __init__(self) -> None:
+        self.messages: list[tuple[str, dict[str, Any]]] = []
+        self._lock = threading.Lock()
+        self.client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=f"recorder-{uuid.uuid4().hex[:8]}"
+        )
+        self.client.on_connect = lambda c, *a: c.subscribe(
+            [("+/+/+/+/order", 0), ("+/+/+/+/instantActions", 0)]
+        )
+        self.client.on_message = self._on_message
+        self.client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
+        self.client.loop_start()
+
+    def _on_message(self, client: mqtt.Client, userdata: Any, message: mqtt.MQTTMessage) -> None:
+        with self._lock:
+            self.messages.append((message.topic, orjson.loads(message.payload)))
+
+    def for_robot(self, serial: str, topic: str) -> list[dict[str, Any]]:
+        with self._lock:
+            return [m for t, m in self.messages if t.endswith(f"/{serial}/{topic}")]
+
+    def close(self) -> None:
+        self.client.loop_stop()
+        self.client.disconnect()
+
+
+@pytest.fixture(scope="session")
+def recorder() -> Iterator[Recorder]:
+    recorder = Recorder()
+    yield recorder
+    recorder.close()
+    for topic, message in recorder.messages:
+        validate_message(topic.rsplit("/", 1)[-1], message["version"], message)
+
+
+@pytest.fixture(scope="session")
+def stack(
+    django_db_setup: None,
+    django_db_blocker: Any,
+    recorder: Recorder,
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[Stack]:
+    import redis
+
+    redis.Redis.from_url(settings.REDIS_URL).flushdb()
+    env = {
+        **os.environ,
+        **SERVER_ENV,
+        "DJANGO_SETTINGS_MODULE": "fleet.settings",
+        "FLEET_DB_NAME": connection.settings_dict["NAME"],
+        "FLEET_REDIS_URL": settings.REDIS_URL,
+        "PYTHONUNBUFFERED": "1",
+    }
+    logs = tmp_path_factory.mktemp("stack-logs")
+    stack = Stack(env=env, logs=logs)
+    stack.add("bridge", [PYTHON, "manage.py", "mqtt_bridge"])
+    stack.add(
+        "worker",
+        [
+            CELERY,
+            "-A",
+            "fleet",
+            "worker",
+            "-Q",
+            "steps,notify",
+            "--pool",
+            "threads",
+            "--concurrency",
+            "4",
+            "--loglevel",
+            "INFO",
+            "--without-heartbeat",
+            "--without-gossip",
+            "--without-mingle",
+        ],
+    )
+    stack.add(
+        "beat",
+        [CELERY, "-A", "fleet", "beat", "--loglevel", "INFO", "--schedule", str(logs / "beat-schedule")],
+    )
+    yield stack
+    stack.stop()
+    print(f"stack logs in {logs}")
+
+
+@pytest.fixture
+def api() -> APIClient:
+    return APIClient()
+
+
+@dataclass
+class Simulator:
+    process: Process
+    names: list[str]
+
+
+@pytest.fixture
+def simulator(stack: Stack, tmp_path: Path) -> Iterator[Callable[..., Simulator]]:
+    """Start a simulator for robot specs like `"{name},0,0"`; stopped at the end of the test."""
+    started: list[Process] = []
+
+    def start(*specs: str, extra: tuple[str, ...] = ()) -> Simulator:
+        argv = [
+            PYTHON,
+            "-m",
+            "simulator",
+            "--robots",
+            *specs,
+            "--tick_period",
+            "0.05",
+            "--speed",
+            "10",
+            "--state_period",
+            "0.5",
+            *extra,
+        ]
+        process = Process(
+            f"simulator-{len(started)}", argv, stack.env, tmp_path / f"simulator-{len(started)}.log"
+        )
+        process.start()
+        started.append(process)
+        return Simulator(process, [spec.split(",")[0] for spec in specs])
+
+    yield start
+    for process in started:
+        process.stop()
+
+
+@pytest.fixture
+def unique() -> Callable[[str], str]:
+    """Robot and mission names unique to this test run."""
+    suffix = uuid.uuid4().hex[:6]
+    return lambda base: f"{base}-{suffix}"

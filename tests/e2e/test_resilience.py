@@ -1,0 +1,136 @@
+"""Reference scenarios `server.py` and `start_order.py`, plus crashes, duplicates and malformed messages."""
+
+import subprocess
+import time
+from collections import Counter
+
+import orjson
+import paho.mqtt.client as mqtt
+import pytest
+from django.conf import settings
+
+from tests.e2e.conftest import wait_for
+from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission, wait_robot
+from workers import livestate, metrics
+
+pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+
+
+def long_mission(api, unique, robot: str) -> str:
+    name = unique("m")
+    legs = [route(f"leg{i}", (x, y)) for i, (x, y) in enumerate([(4, 0), (4, 4), (0, 4), (0, 0)])]
+    post_mission(api, name, robot, legs)
+    return name
+
+
+def orders_by_id(recorder, robot: str) -> Counter:
+    return Counter((o["orderId"], o["orderUpdateId"]) for o in recorder.for_robot(robot, "order"))
+
+
+@pytest.mark.parametrize("process", ["worker", "bridge", "beat"])
+def test_sigkill_of_a_server_process_mid_mission(api, simulator, unique, stack, recorder, process):
+    robot = unique("crash")
+    simulator(f"{robot},0,0", extra=("--speed", "4"))
+    create_robot(api, robot)
+    name = long_mission(api, unique, robot)
+    queued = post_mission(api, unique("queued"), robot, [route("r", (1, 1))])["name"]
+    wait_for(lambda: get(api, "mission", name)["status"]["current_node"] >= 1, message="second leg")
+    stack.processes[process].restart()
+    assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
+    assert wait_mission(api, queued)["status"]["state"] == "COMPLETED"
+    assert (
+        get(api, "mission", queued)["status"]["start_timestamp"]
+        >= get(api, "mission", name)["status"]["end_timestamp"]
+    )
+    order_ids = [o["orderId"] for o in recorder.for_robot(robot, "order")]
+    assert len(set(order_ids)) == 5  # every leaf got exactly one order (resends reuse the same id)
+
+
+def test_broker_restart_mid_mission(api, simulator, unique):
+    robot = unique("broker")
+    simulator(f"{robot},0,0", extra=("--speed", "4"))
+    create_robot(api, robot)
+    name = long_mission(api, unique, robot)
+    wait_for(lambda: get(api, "mission", name)["status"]["current_node"] >= 1, message="second leg")
+    subprocess.run(["pkill", "-x", "mosquitto"], check=False)
+    time.sleep(1)
+    subprocess.run(["mosquitto", "-d", "-c", "/etc/mosquitto/mosquitto.conf"], check=True)
+    assert wait_mission(api, name, timeout=90)["status"]["state"] == "COMPLETED"
+
+
+def test_simulator_started_late_gets_its_mission(api, simulator, unique):
+    robot = unique("late")
+    create_robot(api, robot)
+    name = post_mission(api, unique("m"), robot, [route("r", (1, 0))])["name"]
+    time.sleep(2)
+    assert get(api, "mission", name)["status"]["state"] == "PENDING"
+    assert get(api, "mission", name)["status"]["waiting_reason"] == "Robot is offline"
+    simulator(f"{robot},0,0")
+    assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
+
+
+@pytest.fixture
+def publisher():
+    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2)
+    client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
+    client.loop_start()
+    yield client
+    client.loop_stop()
+    client.disconnect()
+
+
+def test_duplicate_and_out_of_order_states_change_nothing(api, simulator, unique, recorder, publisher):
+    robot = unique("dup")
+    simulator(f"{robot},0,0")
+    create_robot(api, robot)
+    first = post_mission(api, unique("first"), robot, [route("a", (1, 0)), route("b", (1, 1))])["name"]
+    assert wait_mission(api, first)["status"]["state"] == "COMPLETED"
+    topic = f"uagv/v2/RobotCompany/{robot}/state"
+    stored = orjson.loads(livestate.latest_state(robot))
+    old = {
+        **stored,
+        "headerId": 0,
+        "timestamp": "2020-01-01T00:00:00.000Z",
+        "orderId": "stale",
+        "nodeStates": [],
+    }
+    for _ in range(5):
+        publisher.publish(topic, orjson.dumps(stored)).wait_for_publish()  # duplicates
+        publisher.publish(topic, orjson.dumps(old)).wait_for_publish()  # reordered, older
+    second = post_mission(api, unique("second"), robot, [route("c", (0, 0))])["name"]
+    assert wait_mission(api, second)["status"]["state"] == "COMPLETED"
+    sends = orders_by_id(recorder, robot)
+    assert sorted(sends.values()) == [1, 1, 1]  # each leaf's order sent exactly once
+    assert orjson.loads(livestate.latest_state(robot))["orderId"] != "stale"
+
+
+def test_malformed_messages_are_counted_and_do_not_stop_the_bridge(api, simulator, unique, publisher):
+    robot = unique("junk")
+    simulator(f"{robot},0,0")
+    create_robot(api, robot)
+    wait_robot(api, robot, online=True)
+    field = "messages_invalid|topic=state"
+    before = int(livestate.client().hget(metrics.COUNTERS, field) or 0)
+    for payload in (b"not json", b"[]", b'{"headerId": 1}', b"\xff\xfe"):
+        publisher.publish(f"uagv/v2/RobotCompany/{robot}/state", payload).wait_for_publish()
+    wait_for(
+        lambda: int(livestate.client().hget(metrics.COUNTERS, field) or 0) >= before + 4,
+        message="invalid messages counted",
+    )
+    name = post_mission(api, unique("m"), robot, [route("r", (1, 0))])["name"]
+    assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
+
+
+def test_metrics_endpoint_exports_fleet_metrics(api, simulator, unique):
+    robot = unique("metrics")
+    simulator(f"{robot},0,0")
+    create_robot(api, robot)
+    name = post_mission(api, unique("m"), robot, [route("r", (1, 0))])["name"]
+    wait_mission(api, name)
+    response = api.get("/metrics")
+    assert response.status_code == 200
+    text = response.content.decode()
+    assert "fleet_messages_in_total" in text
+    assert 'fleet_missions_finished_total{failure_category="",state="COMPLETED"}' in text
+    assert "fleet_step_latency_seconds_bucket" in text
+    assert 'fleet_robots_online{online="true"}' in text
