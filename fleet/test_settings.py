@@ -9,3 +9,4 @@ from fleet.settings import env_str
 
 REDIS_URL = env_str("FLEET_TEST_REDIS_URL", "redis://127.0.0.1:6379/9")
 CELERY_BROKER_URL = REDIS_URL
+WHITENOISE_AUTOREFRESH = True  # serve static files through the finders; no collectstatic before tests

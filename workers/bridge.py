@@ -91,7 +91,9 @@ class RobotDirectory:
 class Bridge:
     def __init__(self, share_group: str = "") -> None:
         self.share_group = share_group
-        self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue[tuple[str, bytes, float]] = (
+            queue.SimpleQueue()
+        )  # topic, payload, arrival
         self.directory = RobotDirectory()
         self.status: dict[str, RobotStatus] = {}
         self.client = new_client("bridge")
@@ -114,7 +116,7 @@ class Bridge:
         logger.info("bridge connected, subscribed to %s", filters)
 
     def _on_message(self, client: mqtt.Client, userdata: Any, message: mqtt.MQTTMessage) -> None:
-        self.inbox.put((message.topic, message.payload))
+        self.inbox.put((message.topic, message.payload, time.time()))
 
     # --- processing thread ---
 
@@ -133,11 +135,11 @@ class Bridge:
         batch = self._drain(timeout)
         close_old_connections()
         if batch:
-            self.handle(batch)
+            self.handle([(topic, payload) for topic, payload, _ in batch], received_at=batch[0][2])
         if time.monotonic() - self._last_flush >= settings.BRIDGE_STATUS_FLUSH_SECONDS:
             self.flush()
 
-    def _drain(self, timeout: float) -> list[tuple[str, bytes]]:
+    def _drain(self, timeout: float) -> list[tuple[str, bytes, float]]:
         try:
             batch = [self.inbox.get(timeout=timeout)]
         except queue.Empty:
@@ -149,8 +151,11 @@ class Bridge:
                 break
         return batch
 
-    def handle(self, batch: list[tuple[str, bytes]]) -> None:
-        """Parse a batch, store states in one Redis pipeline, then act on what changed."""
+    def handle(self, batch: list[tuple[str, bytes]], received_at: float | None = None) -> None:
+        """Parse a batch, store states in one Redis pipeline, then act on what changed.
+
+        `received_at` (epoch s) is when the batch's first message arrived: step latency counts from there.
+        """
         pipe = livestate.client().pipeline(transaction=False)  # store_state calls only, results aligned
         side = livestate.client().pipeline(transaction=False)  # counters, then last-seen and online marks
         stored: list[str] = []  # robot names, in the order of the store_state calls on `pipe`
@@ -202,9 +207,11 @@ class Bridge:
         }
         added = side_results[len(side_results) - len(seen) :]
         came_online = [name for name, was_added in zip(seen, added, strict=True) if was_added]
-        self._act(changed, came_online, disconnected)
+        self._act(changed, came_online, disconnected, received_at=received_at or time.time())
 
-    def _act(self, changed: set[str], came_online: list[str], disconnected: list[str]) -> None:
+    def _act(
+        self, changed: set[str], came_online: list[str], disconnected: list[str], *, received_at: float
+    ) -> None:
         if came_online:
             Robot.objects.filter(name__in=came_online).update(online=True)
             for name in came_online:
@@ -214,7 +221,7 @@ class Bridge:
             if livestate.mark_offline(name):
                 Robot.objects.filter(name=name).update(online=False)
                 changed.add(name)
-        request_steps(changed | set(came_online))
+        request_steps(changed | set(came_online), at=received_at)
 
     def _remember_status(self, name: str, state: State) -> None:
         status = self.status.setdefault(name, RobotStatus())

@@ -1,5 +1,6 @@
 """Requesting dispatch steps: at most one queued step per robot, however many wake-ups arrive."""
 
+import time
 from collections.abc import Iterable
 
 from workers import livestate
@@ -12,9 +13,10 @@ def step_marker_key(name: str) -> str:
     return f"{livestate.PREFIX}:step-queued:{name}"
 
 
-def request_steps(names: Iterable[str]) -> None:
-    """Queue a step for each robot that has none queued yet."""
+def request_steps(names: Iterable[str], *, at: float | None = None) -> None:
+    """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s)."""
     names = list(names)
+    at = time.time() if at is None else at
     if not names:
         return
     from workers.tasks import step_robot  # tasks import services, which import this module
@@ -24,7 +26,7 @@ def request_steps(names: Iterable[str]) -> None:
         pipe.set(step_marker_key(name), 1, nx=True, ex=STEP_MARKER_SECONDS)
     for name, queued in zip(names, pipe.execute(), strict=True):
         if queued:
-            step_robot.delay(name)
+            step_robot.delay(name, at)
 
 
 def step_started(name: str) -> None:

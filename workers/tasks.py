@@ -1,6 +1,7 @@
 """Celery tasks: thin wrappers that call services and own only queueing and retry policy."""
 
 import logging
+import time
 
 import requests
 from celery import Task, shared_task
@@ -20,7 +21,7 @@ RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 
 
 @shared_task(name="fleet.step_robot", ignore_result=True)
-def step_robot(name: str) -> None:
+def step_robot(name: str, requested_at: float | None = None) -> None:
     steps.step_started(name)
     outcome = robot_step(name=name)
     if outcome.address is not None:
@@ -32,6 +33,8 @@ def step_robot(name: str) -> None:
         )
     for mission, node in outcome.notifies:
         run_notify.apply_async((mission, node), queue=settings.NOTIFY_QUEUE)
+    if requested_at is not None and outcome.messages:
+        metrics.observe_step_latency(time.time() - requested_at)
     if outcome.rejections:
         metrics.count(metrics.ORDER_REJECTIONS, by=outcome.rejections)
     for mission in outcome.finished:
