@@ -50,6 +50,7 @@ class RobotView:
     state: str
     online: bool
     battery_critical_level: float
+    switch_teleop: bool = False  # teleop asked for through the API (not by a pause_order action)
 
 
 @dataclass
@@ -110,6 +111,7 @@ class StepResult:
     actions: list[ActionRecord] = field(default_factory=list)
     messages: list[Outgoing] = field(default_factory=list)
     notify: str | None = None  # name of a notify node to run now
+    switch_teleop: bool = False  # the robot's API teleop switch, which a mission's end leaves alone
     rejected: bool = False  # the robot rejected an order (counted by the caller)
 
 
@@ -123,7 +125,12 @@ def step(
     settings: DispatchSettings,
 ) -> StepResult:
     """Advance `robot` and its `mission` (the RUNNING one, else the head of its queue) by one step."""
-    result = StepResult(robot_state=robot.state, mission=mission, actions=[replace(a) for a in actions])
+    result = StepResult(
+        robot_state=robot.state,
+        mission=mission,
+        actions=[replace(a) for a in actions],
+        switch_teleop=robot.switch_teleop,
+    )
     _track_instant_actions(result, robot, state, now, settings)
     _track_charging(result, state)
     if mission is not None:
@@ -133,7 +140,7 @@ def step(
             _try_start(result, robot, state, mission, now)
         if mission.state == engine.RUNNING:
             _advance(result, robot, state, mission, now, settings)
-    _send_instant_actions(result, robot, now, settings)
+    _send_instant_actions(result, robot, state, now, settings)
     return result
 
 
@@ -167,10 +174,11 @@ def _track_charging(result: StepResult, state: State | None) -> None:
 
 
 def _send_instant_actions(
-    result: StepResult, robot: RobotView, now: datetime, settings: DispatchSettings
+    result: StepResult, robot: RobotView, state: State | None, now: datetime, settings: DispatchSettings
 ) -> None:
-    """Send new instant actions, re-send unacknowledged ones after a timeout; never on every state."""
-    if not robot.online:
+    """Send new instant actions, re-send unacknowledged ones after a timeout; never on every state, and
+    not while the robot is offline or its operating mode leaves the master out of control."""
+    if not robot.online or (state is not None and not vda_state.may_receive_orders(state)):
         return
     due = [
         action
@@ -257,6 +265,9 @@ def _why_not_start(result: StepResult, robot: RobotView, state: State | None) ->
         return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
     if not vda_state.may_receive_orders(state):
         return f"Robot is in {state.operating_mode.value} mode"
+    fatal = vda_state.fatal_errors(state)
+    if fatal:
+        return f"Robot reports a FATAL error: {_describe(fatal)}"
     if not vda_state.is_idle(state):
         return "Robot is busy with an earlier order"
     return None
@@ -347,7 +358,7 @@ def _follow_order(
         if vda_state.order_accepted(state, order.order_id, order.order_update_id):
             mission.order_accepted = True
         else:
-            if mission.order_sent_at is None or now - mission.order_sent_at >= settings.order_resend:
+            if _resend_due(state, mission, tree, leaf, now, settings):
                 mission.order_sent_at = now
                 result.messages.append(Outgoing(order))
             return
@@ -363,6 +374,21 @@ def _follow_order(
         _follow_route(state, mission, leaf, order)
 
 
+def _resend_due(
+    state: State,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    leaf: engine.Node,
+    now: datetime,
+    settings: DispatchSettings,
+) -> bool:
+    """An unacknowledged order is re-sent after a while, unless the robot may not take orders now or the
+    order went stale with a route update (then it is canceled, never re-sent)."""
+    if mission.order_sent_at is not None and now - mission.order_sent_at < settings.order_resend:
+        return False
+    return vda_state.may_receive_orders(state) and not _route_update_pending(tree, mission, leaf, settings)
+
+
 def _follow_action(
     result: StepResult, state: State, mission: MissionRecord, leaf: engine.Node, order: OrderContent
 ) -> None:
@@ -375,6 +401,8 @@ def _follow_action(
     elif status == ActionStatus.FAILED:
         errors = vda_state.errors_referencing(state, action_ids=[action.action_id])
         _leaf_failed(mission, leaf, _describe(errors) if errors else ACTION_FAILURE)
+        if action.action_type == PAUSE_ORDER and result.robot_state == TELEOP:
+            result.robot_state = ON_TASK
     elif action.action_type == PAUSE_ORDER and status is not None:
         result.robot_state = TELEOP
 
@@ -476,7 +504,8 @@ def _tick(
     leaf = tick.current_leaf
     assert leaf is not None
     if _route_update_pending(tree, mission, leaf, settings):
-        _restart_updated_leaf(result, state, mission, leaf, now)
+        if _restart_updated_leaf(result, state, mission, leaf):
+            _tick(result, robot, state, mission, tree, now, settings)  # send the new order right away
         return
     if tick.leaf_to_start is None:
         return
@@ -565,14 +594,17 @@ def _route_update_pending(
 
 
 def _restart_updated_leaf(
-    result: StepResult, state: State | None, mission: MissionRecord, leaf: engine.Node, now: datetime
-) -> None:
-    """Stop the stale order; once stopped, the leaf starts over with the new waypoints (a new order)."""
+    result: StepResult, state: State | None, mission: MissionRecord, leaf: engine.Node
+) -> bool:
+    """Stop the stale order; once stopped, the leaf starts over with the new waypoints (a new order).
+
+    True once the leaf is PENDING again, ready to start."""
     if _order_active(state, mission) and _cancel_of_order(result, mission).status not in FINAL:
-        return
+        return False
     mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.PENDING)
     mission.order = None
     mission.order_accepted = False
+    return True
 
 
 # --- ending ---------------------------------------------------------------------------------------------
@@ -620,8 +652,8 @@ def _end(
         mission.failure_reason = None  # no stale reason from a branch a selector recovered from
     if final_state != engine.COMPLETED:
         mission.failure_category = category or mission.failure_category or ROBOT_APP
-    if was_running and result.robot_state == ON_TASK:
-        result.robot_state = IDLE
+    if was_running and result.robot_state in (ON_TASK, TELEOP) and not result.switch_teleop:
+        result.robot_state = IDLE  # a pause_order's teleop ends with its mission; an API teleop does not
     if mission.lifecycle == PENDING_DELETE:
         result.delete_mission = True
 

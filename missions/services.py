@@ -241,6 +241,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
             state=robot.state,
             online=robot.online,
             battery_critical_level=robot.battery_critical_level,
+            switch_teleop=robot.switch_teleop,
         )
         while True:
             mission = (

@@ -158,9 +158,9 @@ class Bridge:
         """
         pipe = livestate.client().pipeline(transaction=False)  # store_state calls only, results aligned
         side = livestate.client().pipeline(transaction=False)  # counters, then last-seen and online marks
-        stored: list[str] = []  # robot names, in the order of the store_state calls on `pipe`
+        stored: list[tuple[str, State]] = []  # in the order of the store_state calls on `pipe`
         seen: dict[str, float] = {}
-        disconnected: list[str] = []
+        disconnected: set[str] = set()  # a later state in the same batch reconnects
         for topic, payload in batch:
             try:
                 identity, kind = parse_topic(topic)
@@ -179,9 +179,9 @@ class Bridge:
                         header_id=state.header_id,
                         digest=engine_digest(state),
                     )
-                    stored.append(name)
+                    stored.append((name, state))
                     seen[name] = time.time()
-                    self._remember_status(name, state)
+                    disconnected.discard(name)
                 elif kind == Topic.VISUALIZATION:
                     position = parse_visualization(payload).agv_position
                     if position is not None:
@@ -190,7 +190,7 @@ class Bridge:
                         )
                 elif kind == Topic.CONNECTION:
                     if parse_connection(payload).connection_state != ConnectionState.ONLINE:
-                        disconnected.append(name)
+                        disconnected.add(name)
                 elif kind == Topic.FACTSHEET:
                     self._store_factsheet(name, payload)
             except ProtocolError as exc:
@@ -202,15 +202,18 @@ class Bridge:
                 side.sadd(livestate.ONLINE_SET, name)
         stored_results = pipe.execute()
         side_results = side.execute()
-        changed = {
-            name for name, result in zip(stored, stored_results, strict=True) if result == livestate.CHANGED
-        }
+        changed = set()
+        for (name, state), result in zip(stored, stored_results, strict=True):
+            if result != livestate.STALE:  # an older state must not overwrite a newer status
+                self._remember_status(name, state)
+            if result == livestate.CHANGED:
+                changed.add(name)
         added = side_results[len(side_results) - len(seen) :]
         came_online = [name for name, was_added in zip(seen, added, strict=True) if was_added]
         self._act(changed, came_online, disconnected, received_at=received_at or time.time())
 
     def _act(
-        self, changed: set[str], came_online: list[str], disconnected: list[str], *, received_at: float
+        self, changed: set[str], came_online: list[str], disconnected: set[str], *, received_at: float
     ) -> None:
         if came_online:
             Robot.objects.filter(name__in=came_online).update(online=True)
@@ -277,12 +280,15 @@ class Bridge:
             status.pending = {}
             status.written_at = now
             columns = tuple(column for column in STATUS_COLUMNS if column in status.written)
-            values = (Jsonb(status.written[c]) if c in JSON_COLUMNS else status.written[c] for c in columns)
-            groups.setdefault(columns, []).append((*values, status.last_state_at, name))
+            values = [Jsonb(status.written[c]) if c in JSON_COLUMNS else status.written[c] for c in columns]
+            if status.last_state_at is not None:  # a robot only seen on visualization keeps its time
+                columns += ("last_state_at",)
+                values.append(status.last_state_at)
+            groups.setdefault(columns, []).append((*values, name))
         self._last_flush = now
         with connection.cursor() as cursor:
             for columns, rows in groups.items():
-                assignments = ", ".join(f"{column} = %s" for column in (*columns, "last_state_at"))
+                assignments = ", ".join(f"{column} = %s" for column in columns)
                 cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", rows)
 
 

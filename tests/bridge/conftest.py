@@ -1,0 +1,36 @@
+"""Fixtures for bridge and robot_step tests: robots with unique names whose Redis keys are dropped after the
+test, and a bridge that is never connected to MQTT."""
+
+import uuid
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+from robots.models import Robot
+from robots.services import robot_create
+from workers import livestate
+from workers.bridge import Bridge
+from workers.steps import step_marker_key
+
+
+@pytest.fixture
+def make_robot(db: None) -> Iterator[Callable[..., Robot]]:
+    """Creates robots (through the service) named uniquely for this test; forgets their live state after."""
+    names: list[str] = []
+
+    def make(prefix: str = "bridge", **spec: Any) -> Robot:
+        robot = robot_create(name=f"{prefix}-{uuid.uuid4().hex[:10]}", prefix=None, spec=spec)
+        names.append(robot.name)
+        return robot
+
+    yield make
+    for name in names:
+        livestate.forget(name)
+        livestate.client().delete(step_marker_key(name))
+
+
+@pytest.fixture
+def bridge() -> Bridge:
+    """A bridge that only ever handles what a test hands it: run_forever (and so MQTT) is never called."""
+    return Bridge()

@@ -1,0 +1,65 @@
+"""Wire messages of test robots, as the bridge receives them: (topic, payload) pairs."""
+
+from datetime import UTC, datetime, timedelta
+from typing import Any
+
+from robots.models import Robot
+from tests.dispatch.builders import robot_state
+from vda5050.codec import encode, header_for
+from vda5050.models import (
+    AgvPosition,
+    ConnectionContent,
+    ConnectionState,
+    Content,
+    FactsheetContent,
+    VisualizationContent,
+)
+from vda5050.topics import RobotAddress
+from workers import livestate
+from workers.steps import step_marker_key
+
+T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+
+
+def address(robot: Robot | str) -> RobotAddress:
+    name = robot if isinstance(robot, str) else robot.serial_number
+    return RobotAddress("uagv", "RobotCompany", name, "2.0.0")
+
+
+def topic(robot: Robot | str, kind: str) -> str:
+    name = robot if isinstance(robot, str) else robot.serial_number
+    return f"uagv/v2/RobotCompany/{name}/{kind}"
+
+
+def wire(robot: Robot | str, content: Content, *, header_id: int = 1, at: float = 0.0) -> bytes:
+    """`content` as `robot` sends it, stamped `at` seconds after T0."""
+    return encode(content, header_for(address(robot), header_id=header_id, at=T0 + timedelta(seconds=at)))
+
+
+def state_message(
+    robot: Robot | str, *, header_id: int = 1, at: float = 0.0, **fields: Any
+) -> tuple[str, bytes]:
+    """A (topic, payload) state of `robot`; `fields` as for tests.dispatch.builders.robot_state."""
+    return topic(robot, "state"), wire(robot, robot_state(**fields), header_id=header_id, at=at)
+
+
+def connection_message(robot: Robot | str, connection_state: ConnectionState) -> tuple[str, bytes]:
+    return topic(robot, "connection"), wire(robot, ConnectionContent(connection_state=connection_state))
+
+
+def visualization_message(
+    robot: Robot | str, x: float, y: float, theta: float, *, at: float = 0.0
+) -> tuple[str, bytes]:
+    position = AgvPosition(x=x, y=y, theta=theta, map_id="map", position_initialized=True)
+    content = VisualizationContent(agv_position=position)
+    return topic(robot, "visualization"), wire(robot, content, at=at)
+
+
+def factsheet_message(robot: Robot | str, factsheet: FactsheetContent) -> tuple[str, bytes]:
+    return topic(robot, "factsheet"), wire(robot, factsheet)
+
+
+def step_requested(robot: Robot | str) -> bool:
+    """Whether a step was queued for the robot since the marker was last cleared; clears it."""
+    name = robot if isinstance(robot, str) else robot.name
+    return bool(livestate.client().delete(step_marker_key(name)))

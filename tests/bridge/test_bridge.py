@@ -1,0 +1,435 @@
+"""The bridge's message handling against the real PostgreSQL and Redis (MQTT is bypassed: batches are handed
+to `Bridge.handle` as the processing thread would)."""
+
+import time
+import uuid
+from collections.abc import Callable
+
+import orjson
+import pytest
+
+from robots.choices import AgvClass
+from robots.models import InstantAction, Robot
+from robots.services import FACTSHEET_REQUEST, robot_check_heartbeats
+from tests.bridge.messages import (
+    connection_message,
+    factsheet_message,
+    state_message,
+    step_requested,
+    topic,
+    visualization_message,
+)
+from tests.dispatch.builders import error
+from tests.vda5050.samples import full_factsheet
+from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
+from workers import livestate, metrics
+from workers.bridge import Bridge
+
+MakeRobot = Callable[..., Robot]
+
+
+@pytest.fixture
+def robot(make_robot: MakeRobot, bridge: Bridge) -> Robot:
+    """A robot the bridge knows, whose creation-time factsheet request has been answered."""
+    created = make_robot()
+    InstantAction.objects.filter(robot=created).update(status=ActionStatus.FINISHED.value)
+    bridge.directory.reload()
+    return created
+
+
+def _reload(robot: Robot) -> Robot:
+    return Robot.objects.get(name=robot.name)
+
+
+def _counter(name: str, **labels: str) -> int:
+    field = name + "".join(f"|{key}={value}" for key, value in sorted(labels.items()))
+    return int(livestate.client().hget(metrics.COUNTERS, field) or 0)
+
+
+def _waiting_factsheet_requests(robot: Robot) -> int:
+    return InstantAction.objects.filter(
+        robot=robot, action_type=FACTSHEET_REQUEST, status__isnull=True
+    ).count()
+
+
+# --- states ----------------------------------------------------------------------------------------------
+
+
+def test_a_first_state_is_stored_and_brings_the_robot_online_with_a_step_and_a_factsheet_request(
+    bridge: Bridge, robot: Robot
+) -> None:
+    message = state_message(robot, battery=55.0)
+
+    bridge.handle([message])
+
+    assert livestate.latest_state(robot.name) == message[1]
+    assert _reload(robot).online is True
+    assert livestate.client().sismember(livestate.ONLINE_SET, robot.name)
+    assert livestate.last_seen([robot.name])[robot.name] is not None
+    assert step_requested(robot)
+    assert _waiting_factsheet_requests(robot) == 1
+
+
+def test_a_robot_that_stays_online_is_not_asked_for_its_factsheet_again(bridge: Bridge, robot: Robot) -> None:
+    bridge.handle([state_message(robot, header_id=1, at=0.0)])
+    InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED.value)
+
+    bridge.handle([state_message(robot, header_id=2, at=1.0, order_id="o-n0-r0")])
+
+    assert _waiting_factsheet_requests(robot) == 0
+
+
+def test_a_repeated_state_with_nothing_new_for_the_engine_requests_no_step(
+    bridge: Bridge, robot: Robot
+) -> None:
+    bridge.handle([state_message(robot, header_id=1, at=0.0)])
+    assert step_requested(robot)
+    later = state_message(robot, header_id=2, at=1.0, pose=(4.0, 5.0, 1.0, "map"), velocity=(0.4, 0.0, 0.0))
+
+    bridge.handle([later])
+
+    assert livestate.latest_state(robot.name) == later[1]  # stored all the same: the pose is newer
+    assert not step_requested(robot)
+
+
+def test_a_state_with_changed_order_progress_requests_a_step(bridge: Bridge, robot: Robot) -> None:
+    bridge.handle([state_message(robot, header_id=1, order_id="m-n0-r0", node_states=[2, 4])])
+    assert step_requested(robot)
+
+    bridge.handle(
+        [
+            state_message(
+                robot, header_id=2, at=1.0, order_id="m-n0-r0", last_node_sequence_id=2, node_states=[4]
+            )
+        ]
+    )
+
+    assert step_requested(robot)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        pytest.param({"action_states": [("a1", ActionStatus.FINISHED)]}, id="action-state"),
+        pytest.param({"errors": [error("blocked", ErrorLevel.FATAL)]}, id="error"),
+        pytest.param({"battery": 79.0}, id="battery-percent"),
+        pytest.param({"charging": True}, id="charging"),
+    ],
+)
+def test_a_state_with_anything_else_the_engine_reads_requests_a_step(
+    bridge: Bridge, robot: Robot, change: dict
+) -> None:
+    bridge.handle([state_message(robot, header_id=1, battery=80.0)])
+    step_requested(robot)
+
+    bridge.handle([state_message(robot, header_id=2, at=1.0, **{"battery": 80.0, **change})])
+
+    assert step_requested(robot)
+
+
+@pytest.mark.parametrize(
+    ("header_id", "at"),
+    [
+        pytest.param(5, 0.0, id="duplicate"),
+        pytest.param(9, -1.0, id="older-timestamp"),
+        pytest.param(4, 0.0, id="same-time-lower-header-id"),
+    ],
+)
+def test_a_stale_state_is_ignored(bridge: Bridge, robot: Robot, header_id: int, at: float) -> None:
+    current = state_message(robot, header_id=5, at=0.0)
+    bridge.handle([current])
+    step_requested(robot)
+
+    bridge.handle([state_message(robot, header_id=header_id, at=at, order_id="late-n0-r0", node_states=[2])])
+
+    assert livestate.latest_state(robot.name) == current[1]
+    assert not step_requested(robot)
+
+
+def test_a_state_with_the_same_timestamp_and_a_higher_header_id_is_newer(
+    bridge: Bridge, robot: Robot
+) -> None:
+    bridge.handle([state_message(robot, header_id=5, at=0.0)])
+    newer = state_message(robot, header_id=6, at=0.0, order_id="m-n0-r0", node_states=[2])
+
+    bridge.handle([newer])
+
+    assert livestate.latest_state(robot.name) == newer[1]
+
+
+def test_a_batch_keeps_the_newest_state_whatever_the_arrival_order(bridge: Bridge, robot: Robot) -> None:
+    newest = state_message(robot, header_id=3, at=2.0, order_id="m-n0-r0")
+
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0), newest, state_message(robot, header_id=1, at=0.0)]
+    )
+
+    assert livestate.latest_state(robot.name) == newest[1]
+
+
+def test_a_stale_state_does_not_overwrite_the_status_written_to_the_database(
+    bridge: Bridge, robot: Robot
+) -> None:
+    bridge.handle([state_message(robot, header_id=2, at=1.0, battery=50.0, pose=(3.0, 3.0, 0.0, "map"))])
+
+    bridge.handle([state_message(robot, header_id=1, at=0.0, battery=90.0, pose=(0.0, 0.0, 0.0, "map"))])
+    bridge.flush()
+
+    stored = _reload(robot)
+    assert (stored.battery_level, stored.pose_x) == (50.0, 3.0)
+
+
+# --- status written to PostgreSQL ------------------------------------------------------------------------
+
+
+def test_pose_and_battery_reach_the_database_only_on_flush(bridge: Bridge, robot: Robot) -> None:
+    bridge.handle(
+        [
+            state_message(
+                robot,
+                battery=42.5,
+                pose=(3.5, -1.25, 0.75, "floor2"),
+                errors=[error("lowBattery", ErrorLevel.WARNING, "charge soon", nodeId="n1")],
+            )
+        ]
+    )
+    assert (_reload(robot).battery_level, _reload(robot).pose_x) == (0.0, 0.0)
+
+    bridge.flush()
+
+    stored = _reload(robot)
+    assert (stored.battery_level, stored.pose_x, stored.pose_y, stored.pose_theta) == (42.5, 3.5, -1.25, 0.75)
+    assert (stored.pose_map_id, stored.position_initialized, stored.last_state_at is not None) == (
+        "floor2",
+        True,
+        True,
+    )
+    assert stored.hardware_version == {"manufacturer": "RobotCompany", "serial_number": robot.serial_number}
+    assert stored.errors == {
+        "lowBattery": {"level": "WARNING", "description": "charge soon", "references": {"nodeId": "n1"}}
+    }
+
+
+def test_user_info_becomes_the_robots_info_messages(bridge: Bridge, robot: Robot) -> None:
+    topic_name, payload = state_message(robot)
+    message = orjson.loads(payload)
+    info = Information(info_type="user_info", info_description='{"shelf": 4}', info_level=InfoLevel.INFO)
+    message["information"] = [info.model_dump(mode="json", by_alias=True, exclude_none=True)]
+
+    bridge.handle([(topic_name, orjson.dumps(message))])
+    bridge.flush()
+
+    assert _reload(robot).info_messages == {"shelf": 4}
+
+
+def test_one_flush_writes_all_changed_robots_in_one_statement(
+    bridge: Bridge, make_robot: MakeRobot, django_assert_num_queries
+) -> None:
+    robots = [make_robot(), make_robot()]
+    bridge.directory.reload()
+    bridge.handle([state_message(r, battery=30.0 + i) for i, r in enumerate(robots)])
+
+    with django_assert_num_queries(1):
+        bridge.flush()
+
+    assert [_reload(r).battery_level for r in robots] == [30.0, 31.0]
+
+
+def test_a_flush_with_nothing_changed_writes_nothing(
+    bridge: Bridge, robot: Robot, django_assert_num_queries
+) -> None:
+    bridge.handle([state_message(robot, header_id=1, battery=30.0)])
+    bridge.flush()
+    bridge.handle([state_message(robot, header_id=2, at=1.0, battery=30.0)])
+
+    with django_assert_num_queries(0):
+        bridge.flush()
+
+
+def test_a_flush_writes_only_the_robots_that_changed(
+    bridge: Bridge, make_robot: MakeRobot, django_assert_num_queries
+) -> None:
+    moving, parked = make_robot(), make_robot()
+    bridge.directory.reload()
+    bridge.handle([state_message(moving, header_id=1), state_message(parked, header_id=1)])
+    bridge.flush()
+    Robot.objects.filter(name=parked.name).update(battery_level=-1.0)  # would be overwritten if written
+
+    bridge.handle(
+        [
+            state_message(moving, header_id=2, at=1.0, pose=(9.0, 9.0, 0.0, "map")),
+            state_message(parked, header_id=2, at=1.0),
+        ]
+    )
+    with django_assert_num_queries(1):
+        bridge.flush()
+
+    assert (_reload(moving).pose_x, _reload(parked).battery_level) == (9.0, -1.0)
+
+
+def test_visualization_updates_the_pose_without_a_step(bridge: Bridge, robot: Robot) -> None:
+    bridge.handle([state_message(robot)])
+    bridge.flush()
+    step_requested(robot)
+
+    bridge.handle([visualization_message(robot, 6.0, 7.0, -0.5, at=0.5)])
+    bridge.flush()
+
+    stored = _reload(robot)
+    assert (stored.pose_x, stored.pose_y, stored.pose_theta) == (6.0, 7.0, -0.5)
+    assert not step_requested(robot)
+
+
+def test_a_visualization_before_any_state_keeps_the_last_state_time(bridge: Bridge, robot: Robot) -> None:
+    before_restart = Bridge()
+    before_restart.directory.reload()
+    before_restart.handle([state_message(robot)])
+    before_restart.flush()
+    assert _reload(robot).last_state_at is not None
+
+    bridge.handle([visualization_message(robot, 6.0, 7.0, -0.5)])  # e.g. after a bridge restart
+    bridge.flush()
+
+    stored = _reload(robot)
+    assert (stored.pose_x, stored.last_state_at is not None) == (6.0, True)
+
+
+# --- connection ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("connection_state", [ConnectionState.CONNECTIONBROKEN, ConnectionState.OFFLINE])
+def test_a_lost_connection_marks_the_robot_offline_at_once_and_requests_a_step(
+    bridge: Bridge, robot: Robot, connection_state: ConnectionState
+) -> None:
+    bridge.handle([state_message(robot)])
+    step_requested(robot)
+
+    bridge.handle([connection_message(robot, connection_state)])
+
+    assert _reload(robot).online is False
+    assert not livestate.client().sismember(livestate.ONLINE_SET, robot.name)
+    assert step_requested(robot)
+
+
+def test_a_connection_online_message_changes_nothing(bridge: Bridge, robot: Robot) -> None:
+    bridge.handle([connection_message(robot, ConnectionState.ONLINE)])
+
+    assert _reload(robot).online is False
+    assert not step_requested(robot)
+
+
+def test_a_robot_that_lost_its_connection_comes_back_with_its_next_state(
+    bridge: Bridge, robot: Robot
+) -> None:
+    bridge.handle([state_message(robot, header_id=1)])
+    bridge.handle([connection_message(robot, ConnectionState.CONNECTIONBROKEN)])
+    step_requested(robot)
+
+    bridge.handle([state_message(robot, header_id=2, at=5.0)])
+
+    assert _reload(robot).online is True
+    assert step_requested(robot)
+
+
+def test_a_state_after_a_connection_loss_in_the_same_batch_leaves_the_robot_online(
+    bridge: Bridge, robot: Robot
+) -> None:
+    bridge.handle([state_message(robot, header_id=1)])
+
+    bridge.handle(
+        [
+            connection_message(robot, ConnectionState.CONNECTIONBROKEN),
+            state_message(robot, header_id=2, at=5.0),
+        ]
+    )
+
+    assert _reload(robot).online is True
+
+
+# --- factsheet -------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("agv_class", "stored_class"),
+    [
+        ("FORKLIFT", AgvClass.FORKLIFT),
+        ("CARRIER", AgvClass.CARRIER),
+        ("MANIPULATOR", AgvClass.MANIPULATOR),
+        ("HUMANOID", AgvClass.HUMANOID),
+        ("SPACESHIP", AgvClass.CARRIER),
+    ],
+)
+def test_a_factsheet_is_stored_whole_with_class_and_top_speed(
+    bridge: Bridge, robot: Robot, agv_class: str, stored_class: AgvClass
+) -> None:
+    factsheet = full_factsheet()
+    factsheet.type_specification.agv_class = agv_class
+    factsheet.physical_parameters.speed_max = 2.25
+    message = factsheet_message(robot, factsheet)
+
+    bridge.handle([message])
+
+    stored = _reload(robot)
+    assert stored.factsheet == orjson.loads(message[1])
+    assert (stored.agv_class, stored.speed_max) == (stored_class, 2.25)
+
+
+# --- malformed messages ----------------------------------------------------------------------------------
+
+
+def test_malformed_messages_are_counted_and_the_rest_of_the_batch_is_handled(
+    bridge: Bridge, robot: Robot
+) -> None:
+    unknown_kind = f"bogus{uuid.uuid4().hex[:8]}"
+    before = {
+        "state": _counter(metrics.MESSAGES_INVALID, topic="state"),
+        "factsheet": _counter(metrics.MESSAGES_INVALID, topic="factsheet"),
+        "unknown_robot": _counter(metrics.MESSAGES_INVALID, topic="unknown_robot"),
+    }
+    _, good = state_message(robot)
+    missing_fields = orjson.dumps({k: v for k, v in orjson.loads(good).items() if k != "safetyState"})
+    batch = [
+        (topic(robot, "state"), b"{not json"),
+        (topic(robot, "state"), missing_fields),
+        (topic(robot, "state"), b"[1, 2]"),
+        (topic(robot, "factsheet"), b'{"version": "2.0.0"}'),
+        (f"uagv/v2/RobotCompany/{robot.serial_number}/{unknown_kind}", good),
+        (f"uagv/RobotCompany/{robot.serial_number}/state", good),
+        (topic(f"stranger-{uuid.uuid4().hex[:8]}", "state"), good),
+        (topic(robot, "state"), good),
+    ]
+
+    bridge.handle(batch)
+
+    assert _counter(metrics.MESSAGES_INVALID, topic=unknown_kind) == 1
+    assert (
+        _counter(metrics.MESSAGES_INVALID, topic="state") - before["state"] >= 4
+    )  # 3 payloads, 4-level topic
+    assert _counter(metrics.MESSAGES_INVALID, topic="factsheet") - before["factsheet"] >= 1
+    assert _counter(metrics.MESSAGES_INVALID, topic="unknown_robot") - before["unknown_robot"] >= 1
+    assert livestate.latest_state(robot.name) == good
+    assert _reload(robot).online is True
+
+
+# --- heartbeats ------------------------------------------------------------------------------------------
+
+
+def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make_robot: MakeRobot) -> None:
+    silent, talking, unheard = (make_robot(heartbeat_timeout=5.0) for _ in range(3))
+    bridge.directory.reload()
+    bridge.handle([state_message(silent), state_message(talking)])
+    Robot.objects.filter(name=unheard.name).update(online=True)  # online in the database, never seen
+    now = time.time()
+    pipe = livestate.client().pipeline()
+    livestate.mark_seen(pipe, [silent.name], now - 6.0)
+    livestate.mark_seen(pipe, [talking.name], now - 4.0)
+    pipe.execute()
+    for robot in (silent, talking, unheard):
+        step_requested(robot)
+
+    offline = robot_check_heartbeats(now=now)
+
+    assert sorted(offline) == sorted([silent.name, unheard.name])
+    assert [_reload(r).online for r in (silent, talking, unheard)] == [False, True, False]
+    assert not livestate.client().sismember(livestate.ONLINE_SET, silent.name)
+    assert [step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]

@@ -1,0 +1,245 @@
+"""`missions.services.robot_step`: the dispatch step's I/O wrapper, against the real PostgreSQL and Redis.
+
+The robot's state is put into Redis by hand, as the bridge stores it; missions are created by the service.
+"""
+
+from collections.abc import Callable
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from django.utils import timezone
+
+from missions.choices import FailureCategory, Lifecycle, MissionState
+from missions.dispatch import engine_digest
+from missions.models import Mission
+from missions.services import StepOutcome, mission_cancel, mission_create, mission_delete, robot_step
+from robots.choices import RobotState
+from robots.models import InstantAction, Robot
+from robots.services import FACTSHEET_REQUEST, robot_delete
+from tests.bridge.messages import T0, wire
+from tests.dispatch.builders import check_schema, finished, on_order, robot_state
+from vda5050.codec import parse_state
+from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
+from workers import livestate
+
+MakeRobot = Callable[..., Robot]
+NOW = timezone.now().replace(microsecond=0)
+
+
+@pytest.fixture
+def robot(make_robot: MakeRobot) -> Robot:
+    """An online robot whose latest state says it is idle."""
+    created = make_robot(prefix="step")
+    Robot.objects.filter(name=created.name).update(online=True)
+    put_state(created, header_id=1)
+    return created
+
+
+def put_state(robot: Robot, *, header_id: int, state: State | None = None, **fields: Any) -> None:
+    """Store a state as the bridge does: `state` (retargeted to the robot), else one built from `fields`."""
+    payload = wire(robot, state or robot_state(**fields), header_id=header_id, at=float(header_id))
+    pipe = livestate.client().pipeline()
+    livestate.store_state(
+        pipe,
+        name=robot.name,
+        payload=payload,
+        timestamp_ms=int((T0 + timedelta(seconds=header_id)).timestamp() * 1000),
+        header_id=header_id,
+        digest=engine_digest(parse_state(payload)),
+    )
+    pipe.execute()
+
+
+def step(robot: Robot, *, after: float = 0.0) -> StepOutcome:
+    """robot_step `after` seconds after NOW, every message checked against the schemas."""
+    now = NOW + timedelta(seconds=after)
+    outcome = robot_step(name=robot.name, now=now)
+    for header_id, message in enumerate(outcome.messages):
+        check_schema(message.content, header_id, now)
+    return outcome
+
+
+def orders(outcome: StepOutcome) -> list[OrderContent]:
+    return [m.content for m in outcome.messages if isinstance(m.content, OrderContent)]
+
+
+def instant_actions(outcome: StepOutcome) -> list[Action]:
+    return [
+        a for m in outcome.messages if isinstance(m.content, InstantActionsContent) for a in m.content.actions
+    ]
+
+
+def create(name: str, robot: Robot, *tree: dict[str, Any]) -> Mission:
+    route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
+    return mission_create(
+        name=name, prefix=None, spec={"robot": robot.name, "mission_tree": list(tree) or [route]}
+    )
+
+
+def test_the_first_step_starts_the_mission_and_returns_and_stores_its_order(robot: Robot) -> None:
+    create("m1", robot)
+
+    outcome = step(robot)
+
+    [order] = orders(outcome)
+    assert order.order_id == "m1-n0-r0"
+    mission = Mission.objects.get(name="m1")
+    assert (mission.state, mission.start_timestamp, mission.current_node) == (MissionState.RUNNING, NOW, 0)
+    assert mission.order == order.model_dump(mode="json", by_alias=True, exclude_none=True)
+    assert (mission.order_sent_at, mission.order_accepted, mission.attempts) == (NOW, False, {"r": 1})
+    assert mission.node_status["r"]["state"] == MissionState.RUNNING
+    assert Robot.objects.get(name=robot.name).state == RobotState.ON_TASK
+    assert outcome.address.serial_number == robot.serial_number
+
+
+def test_the_first_step_sends_the_factsheet_request_queued_at_creation(robot: Robot) -> None:
+    outcome = step(robot)
+
+    [request] = InstantAction.objects.filter(robot=robot, action_type=FACTSHEET_REQUEST)
+    assert [(a.action_type, a.action_id) for a in instant_actions(outcome)] == [
+        (FACTSHEET_REQUEST, request.action_id)
+    ]
+    assert (request.sent_at, request.send_count, request.status) == (NOW, 1, None)
+
+
+def test_a_second_step_without_a_new_state_sends_nothing(robot: Robot) -> None:
+    create("m1", robot)
+    step(robot)
+    stored = Mission.objects.get(name="m1")
+
+    outcome = step(robot, after=1.0)
+
+    assert outcome.messages == []
+    assert Mission.objects.get(name="m1").updated_at == stored.updated_at
+
+
+def test_an_unaccepted_order_is_resent_by_a_later_step(robot: Robot) -> None:
+    create("m1", robot)
+    [first] = orders(step(robot))
+
+    outcome = step(robot, after=60.0)
+
+    assert orders(outcome) == [first]
+
+
+def test_an_offline_robot_keeps_its_mission_queued_and_gets_nothing(robot: Robot) -> None:
+    Robot.objects.filter(name=robot.name).update(online=False)
+    create("m1", robot)
+
+    outcome = step(robot)
+
+    mission = Mission.objects.get(name="m1")
+    assert (mission.state, mission.waiting_reason) == (MissionState.PENDING, "Robot is offline")
+    assert outcome.messages == []
+
+
+def test_a_stored_state_that_no_longer_parses_counts_as_no_state(robot: Robot) -> None:
+    pipe = livestate.client().pipeline()
+    livestate.store_state(pipe, name=robot.name, payload=b"{}", timestamp_ms=10**13, header_id=1, digest="x")
+    pipe.execute()
+    create("m1", robot)
+
+    step(robot)
+
+    assert Mission.objects.get(name="m1").waiting_reason == "Robot is offline"
+
+
+def test_the_queue_runs_fifo_as_missions_end(robot: Robot) -> None:
+    for name in ("m1", "m2", "m3"):
+        create(name, robot)
+    [first] = orders(step(robot))
+
+    put_state(robot, header_id=2, state=finished(first))
+    outcome = step(robot, after=1.0)
+
+    assert [m.name for m in outcome.finished] == ["m1"]
+    assert [o.order_id for o in orders(outcome)] == ["m2-n0-r0"]
+    states = dict(Mission.objects.values_list("name", "state"))
+    assert states == {"m1": MissionState.COMPLETED, "m2": MissionState.RUNNING, "m3": MissionState.PENDING}
+    assert Robot.objects.get(name=robot.name).state == RobotState.ON_TASK
+
+    [second] = orders(outcome)
+    put_state(robot, header_id=3, state=finished(second))
+    outcome = step(robot, after=2.0)
+    assert [o.order_id for o in orders(outcome)] == ["m3-n0-r0"]
+
+
+def test_missions_that_end_without_starting_let_the_next_one_start_in_the_same_step(robot: Robot) -> None:
+    first = create("m1", robot)
+    Mission.objects.filter(name=first.name).update(deadline=NOW - timedelta(seconds=1))
+    create("m2", robot)
+
+    outcome = step(robot)
+
+    assert [(m.name, m.state, m.failure_category) for m in outcome.finished] == [
+        ("m1", MissionState.FAILED, FailureCategory.DEADLINE)
+    ]
+    assert [o.order_id for o in orders(outcome)] == ["m2-n0-r0"]
+
+
+def test_a_canceled_running_mission_gets_a_cancel_order_then_ends_canceled(robot: Robot) -> None:
+    create("m1", robot)
+    [order] = orders(step(robot))
+    put_state(robot, header_id=2, state=on_order(order, 0))
+    step(robot, after=1.0)
+    mission_cancel(mission=Mission.objects.get(name="m1"))
+
+    outcome = step(robot, after=2.0)
+
+    [cancel] = InstantAction.objects.filter(robot=robot, action_type="cancelOrder")
+    assert (cancel.mission, cancel.status, cancel.send_count) == ("m1", None, 1)
+    assert cancel.sent_at == NOW + timedelta(seconds=2)
+    assert [(a.action_type, a.action_id) for a in instant_actions(outcome)] == [
+        ("cancelOrder", cancel.action_id)
+    ]
+    assert Mission.objects.get(name="m1").state == MissionState.RUNNING
+
+    confirmed = on_order(order, 0, extra_actions=[(cancel.action_id, ActionStatus.FINISHED)])
+    put_state(robot, header_id=3, state=confirmed.model_copy(update={"node_states": [], "edge_states": []}))
+    step(robot, after=3.0)
+
+    mission = Mission.objects.get(name="m1")
+    assert (mission.state, mission.failure_category) == (MissionState.CANCELED, FailureCategory.CANCELED)
+    assert InstantAction.objects.get(action_id=cancel.action_id).status == ActionStatus.FINISHED
+    assert Robot.objects.get(name=robot.name).state == RobotState.IDLE
+
+
+def test_a_running_mission_deleted_is_canceled_then_removed_and_the_next_one_starts(robot: Robot) -> None:
+    create("m1", robot)
+    create("m2", robot)
+    [order] = orders(step(robot))
+    put_state(robot, header_id=2, state=on_order(order, 0))
+    assert mission_delete(mission=Mission.objects.get(name="m1")).lifecycle == Lifecycle.PENDING_DELETE
+    step(robot, after=1.0)
+    [cancel] = InstantAction.objects.filter(robot=robot, action_type="cancelOrder")
+
+    confirmed = on_order(order, 0, extra_actions=[(cancel.action_id, ActionStatus.FINISHED)])
+    put_state(robot, header_id=3, state=confirmed.model_copy(update={"node_states": [], "edge_states": []}))
+    outcome = step(robot, after=2.0)
+
+    assert not Mission.objects.filter(name="m1").exists()
+    assert [o.order_id for o in orders(outcome)] == ["m2-n0-r0"]
+
+
+def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_state(
+    robot: Robot, django_capture_on_commit_callbacks
+) -> None:
+    create("m1", robot)
+    step(robot)
+    robot_delete(robot=Robot.objects.get(name=robot.name))
+
+    with django_capture_on_commit_callbacks(execute=True):
+        outcome = step(robot, after=1.0)
+
+    mission = Mission.objects.get(name="m1")
+    assert (mission.state, mission.failure_category) == (MissionState.FAILED, FailureCategory.ROBOT_APP)
+    assert not Robot.objects.filter(name=robot.name).exists()
+    assert livestate.latest_state(robot.name) is None
+    assert outcome.messages == []
+
+
+def test_a_step_of_an_unknown_robot_does_nothing(db: None) -> None:
+    outcome = robot_step(name="nobody-here", now=NOW)
+
+    assert (outcome.address, outcome.messages) == (None, [])
