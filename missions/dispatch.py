@@ -265,7 +265,9 @@ def _why_not_start(result: StepResult, robot: RobotView, state: State | None) ->
         return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
     if not vda_state.may_receive_orders(state):
         return f"Robot is in {state.operating_mode.value} mode"
-    fatal = vda_state.fatal_errors(state)
+    # A FATAL error about an earlier order ended that order's leaf; one about nothing in particular means
+    # the robot itself cannot work until someone fixes it.
+    fatal = [error for error in vda_state.fatal_errors(state) if not error.error_references]
     if fatal:
         return f"Robot reports a FATAL error: {_describe(fatal)}"
     if not vda_state.is_idle(state):

@@ -27,7 +27,7 @@ def test_three_waypoint_route_completes_with_robot_on_task_then_idle(api, simula
     wait_robot(api, robot, online=True)
     recorder_ = StatusRecorder(api, unique("m"))
     name = recorder_.name
-    post_mission(api, name, robot, [route("r0", (1, 0), (1, 1), (2, 1))])
+    post_mission(api, name, robot, [route("r0", (6, 0), (6, 6), (2, 1))])  # long enough to see ON_TASK
     wait_robot(api, robot, state="ON_TASK")
     mission = wait_mission(api, name)
     sequence = recorder_.stop()
