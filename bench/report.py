@@ -1,0 +1,217 @@
+"""Markdown tables and a plot from ``bench.fleet`` result files.
+
+``python -m bench.report bench/results/*.json --output bench --name latest`` writes ``latest.md`` (one row
+per run) and ``latest.png`` (step latency and throughput against fleet size).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+SERVER_GROUPS = ("api", "bridge", "workers", "beat", "redis", "postgres", "broker")
+GENERATOR = "generator"
+
+
+def run_markdown(result: dict[str, Any]) -> str:
+    """One run: its settings, its figures and CPU per process group."""
+    options = result["options"]
+    title = result["label"] or result["mode"]
+    lines = [
+        f"## {title}: {options['robots']} robots ({result['mode']}, run {result['run_id']})",
+        "",
+        f"{_settings(options)}; window {result['window_seconds']} s from {result['started_at']}.",
+        f"Machine: {machine_line(result['machine'])}.",
+        "",
+        "| figure | value |",
+        "|---|---|",
+    ]
+    throughput = result["throughput"]
+    if result["mode"] == "run":
+        step, start, missions = result["step_latency_ms"], result["start_latency_ms"], result["missions"]
+        lines += [
+            f"| orders/s | {throughput['orders_per_second']} |",
+            f"| step latency p50 / p95 / p99 / max (ms) | {_latency(step, 'p50', 'p95', 'p99', 'max')} "
+            f"({step['count']} steps) |",
+            f"| start latency p50 / p99 / max (ms) | {_latency(start, 'p50', 'p99', 'max')} "
+            f"({start['count']} starts) |",
+            f"| missions completed / failed / abandoned | {missions['completed']} / "
+            f"{_value(missions['failed'])} / {missions['abandoned']} |",
+        ]
+        if missions["failure_reasons"]:
+            reasons = "; ".join(f"{count}x {reason}" for reason, count in missions["failure_reasons"].items())
+            lines.append(f"| failure reasons | {reasons.replace('|', '/')} |")
+    errors = {key: count for key, count in result["errors"].items() if key != "samples" and count}
+    lag = result["generator_tick_lag_ms"]
+    lines += [
+        f"| errors | {', '.join(f'{key} {count}' for key, count in errors.items()) or 'none'} |",
+        f"| states/s published | {throughput['states_per_second']} |",
+        f"| generator state-tick lag p99 / max (ms) | {_value(lag['p99'])} / {_value(lag['max'])} |",
+        "",
+        "| process group | CPU s | cores | RSS MB | processes |",
+        "|---|---|---|---|---|",
+    ]
+    for group, usage in result["cpu"].items():
+        figures = (usage["cpu_seconds"], usage["cores"], usage["rss_mb"], usage["processes"])
+        lines.append(f"| {group} | " + " | ".join(str(figure) for figure in figures) + " |")
+    lines.append(
+        f"| server total | {_server_cpu(result, 'cpu_seconds')} | {_server_cpu(result, 'cores')} | | |"
+    )
+    return "\n".join(lines) + "\n"
+
+
+def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
+    """One row per run, ordered by mode, label, delay and fleet size."""
+    header = (
+        "| label | mode | N | K | Q | delay s | state Hz | orders/s "
+        "| step p50 | step p95 | step p99 | step max | start p50 | start p99 "
+        "| missions done / failed | server cores | " + " | ".join(SERVER_GROUPS) + " | generator |"
+    )
+    lines = [header, "|" + "---|" * (header.count("|") - 1)]
+    for result in sorted(results, key=_order):
+        options, step, start = result["options"], result["step_latency_ms"], result["start_latency_ms"]
+        running = result["mode"] == "run"
+        cpu = result["cpu"]
+        cells = [
+            result["label"] or "-",
+            result["mode"],
+            options["robots"],
+            options["nodes"] if running else "-",
+            options["queue"] if running else "-",
+            options["delay"] if running else "-",
+            options["state_hz"],
+            result["throughput"]["orders_per_second"] if running else "-",
+            *(_value(step[key]) if running else "-" for key in ("p50", "p95", "p99", "max")),
+            *(_value(start[key]) if running else "-" for key in ("p50", "p99")),
+            f"{result['missions']['completed']} / {_value(result['missions']['failed'])}" if running else "-",
+            _server_cpu(result, "cores"),
+            *(cpu[group]["cores"] if group in cpu else "-" for group in SERVER_GROUPS),
+            cpu[GENERATOR]["cores"],
+        ]
+        lines.append("| " + " | ".join(str(cell) for cell in cells) + " |")
+    notes = "Latencies in ms; CPU in cores (CPU seconds per second of the measurement window)."
+    machines = sorted({machine_line(result["machine"]) for result in results})
+    return "\n".join([*lines, "", notes, *(f"Machine: {line}." for line in machines)]) + "\n"
+
+
+def plot(results: Sequence[dict[str, Any]], path: Path) -> None:
+    """Step latency (p50, p99) and throughput against fleet size, one line per label and delay."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [result for result in results if result["mode"] == "run"]
+    idle = [result for result in results if result["mode"] == "idle"]
+    panels = 3 if idle else 2
+    figure, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.2), layout="constrained")
+    latency, throughput = axes[0], axes[1]
+    for (label, delay), series in _series(runs).items():
+        name = f"{label} delay {delay:g} s" if label else f"delay {delay:g} s"
+        sizes = [result["options"]["robots"] for result in series]
+        (line,) = latency.plot(
+            sizes, [r["step_latency_ms"]["p50"] for r in series], marker="o", label=f"{name} p50"
+        )
+        latency.plot(
+            sizes,
+            [r["step_latency_ms"]["p99"] for r in series],
+            marker="^",
+            linestyle="--",
+            color=line.get_color(),
+            label=f"{name} p99",
+        )
+        throughput.plot(sizes, [r["throughput"]["orders_per_second"] for r in series], marker="o", label=name)
+    latency.set(title="Step latency", xlabel="robots", ylabel="ms", yscale="log")
+    throughput.set(title="Throughput", xlabel="robots", ylabel="orders / s", ylim=(0, None))
+    if idle:
+        by_label: dict[str, list[dict[str, Any]]] = {}
+        for result in sorted(idle, key=lambda r: r["options"]["robots"]):
+            by_label.setdefault(result["label"], []).append(result)
+        for label, series in by_label.items():
+            axes[2].plot(
+                [r["options"]["robots"] for r in series],
+                [_server_cpu(r, "cores") for r in series],
+                marker="o",
+                label=label or "idle",
+            )
+        axes[2].set(title="Idle fleet: server CPU", xlabel="robots", ylabel="cores", ylim=(0, None))
+    sizes = sorted({result["options"]["robots"] for result in results})
+    for axis in axes:
+        axis.set_xscale("log")
+        axis.set_xticks(sizes, [str(size) for size in sizes])
+        axis.minorticks_off()
+        axis.grid(True, alpha=0.3)
+        if axis.get_legend_handles_labels()[0]:
+            axis.legend(fontsize="small")
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+def write_summary(results: Sequence[dict[str, Any]], output: Path, name: str) -> tuple[Path, Path]:
+    output.mkdir(parents=True, exist_ok=True)
+    table, image = output / f"{name}.md", output / f"{name}.png"
+    table.write_text(summary_markdown(results))
+    plot(results, image)
+    return table, image
+
+
+def machine_line(machine: dict[str, Any]) -> str:
+    return (
+        f"{machine.get('cpu_model', 'unknown CPU')}, {machine['cpus']} CPUs, "
+        f"{machine.get('memory_gb', '?')} GB, {machine['platform']}, Python {machine['python']}"
+    )
+
+
+def _series(runs: Sequence[dict[str, Any]]) -> dict[tuple[str, float], list[dict[str, Any]]]:
+    series: dict[tuple[str, float], list[dict[str, Any]]] = {}
+    for result in sorted(runs, key=lambda r: r["options"]["robots"]):
+        series.setdefault((result["label"], result["options"]["delay"]), []).append(result)
+    return series
+
+
+def _order(result: dict[str, Any]) -> tuple[str, str, float, int]:
+    options = result["options"]
+    return (result["mode"], result["label"], options["delay"], options["robots"])
+
+
+def _settings(options: dict[str, Any]) -> str:
+    missions = (
+        f"K={options['nodes']} route nodes per mission, queue Q={options['queue']}, "
+        f"delay {options['delay']} s, "
+        if options["mode"] == "run"
+        else "no missions, "
+    )
+    return f"{missions}state {options['state_hz']} Hz, warm-up {options['warmup']} s"
+
+
+def _server_cpu(result: dict[str, Any], key: str) -> float:
+    return round(sum(usage[key] for group, usage in result["cpu"].items() if group != GENERATOR), 3)
+
+
+def _latency(summary: dict[str, Any], *keys: str) -> str:
+    return " / ".join(_value(summary[key]) for key in keys)
+
+
+def _value(value: Any) -> str:
+    return "-" if value is None else str(value)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.report", description=__doc__.splitlines()[0])
+    parser.add_argument("results", nargs="+", type=Path, help="result JSON files of bench.fleet")
+    parser.add_argument("--output", type=Path, default=Path("bench"), help="directory for <name>.md/.png")
+    parser.add_argument("--name", default="latest", help="file name (without extension)")
+    args = parser.parse_args(argv)
+    results = [json.loads(path.read_text()) for path in args.results]
+    table, image = write_summary(results, args.output, args.name)
+    sys.stdout.write(table.read_text())
+    print(f"wrote {table} and {image}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

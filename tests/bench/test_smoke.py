@@ -1,0 +1,219 @@
+"""A 10-second run of the benchmark against the real server processes (CI's smoke run).
+
+The server is the e2e harness's (bridge, worker, beat with the same environment and time compression)
+plus gunicorn on a free port, all against the test database; they run for this module only, so they
+never overlap the e2e session's own processes. Every message on the benchmark robots' topics, theirs
+and the server's, must pass the official VDA 5050 2.0.0 schema.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import threading
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import orjson
+import paho.mqtt.client as mqtt
+import pytest
+import requests
+from django.conf import settings
+from django.db import connection
+
+from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
+from tests.e2e.conftest import CELERY, PYTHON, ROOT, SERVER_ENV, Stack, wait_for
+from tests.vda5050.schemas import validate_message
+from vda5050.codec import parse_state
+
+pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+
+PREFIX = "uagv/v2/RobotCompany"  # the server's default identity for robots created by name
+GENERATOR_TIMEOUT = 180  # s; generous, the machine is shared
+
+
+@pytest.fixture(scope="module")
+def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """Base URL of a complete server: API, bridge, worker and beat against the test database."""
+    env = {
+        **os.environ,
+        **SERVER_ENV,
+        "DJANGO_SETTINGS_MODULE": "fleet.settings",
+        "FLEET_DB_NAME": connection.settings_dict["NAME"],
+        "FLEET_REDIS_URL": settings.REDIS_URL,
+        "PYTHONUNBUFFERED": "1",
+    }
+    logs = tmp_path_factory.mktemp("bench-stack-logs")
+    stack = Stack(env=env, logs=logs)
+    port = _free_port()
+    stack.add(
+        "api",
+        [
+            str(Path(PYTHON).with_name("gunicorn")),
+            "fleet.wsgi",
+            "-b",
+            f"127.0.0.1:{port}",
+            "-w",
+            "1",
+            "--threads",
+            "4",
+            "--no-control-socket",
+        ],
+    )
+    stack.add("bridge", [PYTHON, "manage.py", "mqtt_bridge"])
+    stack.add(
+        "worker",
+        [
+            CELERY,
+            "-A",
+            "fleet",
+            "worker",
+            "-Q",
+            "steps,notify",
+            "--pool",
+            "threads",
+            "--concurrency",
+            "4",
+            "--without-heartbeat",
+            "--without-gossip",
+            "--without-mingle",
+        ],
+    )
+    stack.add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(logs / "beat-schedule")])
+    base_url = f"http://127.0.0.1:{port}"
+    try:
+        wait_for(lambda: _answers(base_url), message=f"the API on {base_url}")
+        yield base_url
+    finally:
+        stack.stop()
+        print(f"bench stack logs in {logs}")
+
+
+class Capture:
+    """Every message on the topics of one run's robots."""
+
+    def __init__(self, serial_prefix: str) -> None:
+        self.serial_prefix = serial_prefix
+        self.messages: list[tuple[str, str, bytes]] = []  # (serial, topic, payload)
+        self._lock = threading.Lock()
+        self._subscribed = threading.Event()
+        self.client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=f"capture-{uuid.uuid4().hex[:8]}"
+        )
+        self.client.on_connect = lambda client, *args: client.subscribe(f"{PREFIX}/+/+")
+        self.client.on_subscribe = lambda *args: self._subscribed.set()
+        self.client.on_message = self._on_message
+        self.client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
+        self.client.loop_start()
+        wait_for(self._subscribed.is_set, message="the capture's subscription")
+
+    def _on_message(self, client: mqtt.Client, userdata: Any, message: mqtt.MQTTMessage) -> None:
+        serial, topic = message.topic.split("/")[-2:]
+        if serial.startswith(self.serial_prefix):
+            with self._lock:
+                self.messages.append((serial, topic, message.payload))
+
+    def of(self, topic: str) -> list[dict[str, Any]]:
+        """Messages on `topic`, without the empty payloads that clear retained messages at cleanup."""
+        with self._lock:
+            return [orjson.loads(payload) for _, name, payload in self.messages if name == topic and payload]
+
+    def close(self) -> None:
+        self.client.loop_stop()
+        self.client.disconnect()
+
+
+def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_path: Path) -> None:
+    run_id = uuid.uuid4().hex[:6]
+    capture = Capture(f"bench-{run_id}-")
+    try:
+        finished = subprocess.run(
+            [
+                PYTHON,
+                "-m",
+                "bench.fleet",
+                "--base-url",
+                server,
+                "--mqtt-host",
+                settings.MQTT_HOST,
+                "--mqtt-port",
+                str(settings.MQTT_PORT),
+                "--mqtt-prefix",
+                PREFIX,
+                "--robots",
+                "5",
+                "--nodes",
+                "3",
+                "--duration",
+                "10",
+                "--warmup",
+                "1",
+                "--run-id",
+                run_id,
+                "--output",
+                str(tmp_path),
+            ],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=GENERATOR_TIMEOUT,
+            check=False,
+        )
+        assert finished.returncode == 0, finished.stderr[-3000:]
+        wait_for(  # the last messages may still be on their way to the capture
+            lambda: any(c["connectionState"] == "OFFLINE" for c in capture.of("connection")),
+            message="the robots' OFFLINE",
+        )
+    finally:
+        capture.close()
+
+    result = json.loads((tmp_path / f"run-n5-{run_id}.json").read_text())
+    assert (tmp_path / f"run-n5-{run_id}.md").read_text().startswith("## run: 5 robots")
+    missions = result["missions"]
+    assert missions["completed"] > 0
+    assert missions["failed"] == 0, missions["failure_reasons"]
+    assert missions["abandoned"] == 0
+    assert result["errors"]["post_errors"] == result["errors"]["malformed_messages"] == 0
+    assert result["errors"]["start_timeouts"] == result["errors"]["mqtt_disconnects"] == 0
+    assert result["start_latency_ms"]["count"] == 5
+    assert result["step_latency_ms"]["count"] > 0
+    assert result["throughput"]["orders_per_second"] > 0
+    assert set(result["cpu"]) == {*DEFAULT_PROCESS_GROUPS, GENERATOR}
+
+    states, orders = capture.of("state"), capture.of("order")
+    assert len(states) > len(orders) >= missions["completed"] * 3
+    for topic in ("state", "connection", "factsheet", "order", "instantActions"):
+        for message in capture.of(topic):
+            validate_message(topic, "2.0.0", message)
+    for state in states:
+        parse_state(orjson.dumps(state))
+    done = [s for s in states if s["orderId"] and not s["nodeStates"] and s["lastNodeSequenceId"] > 0]
+    assert done, "no state reports a finished order"
+    assert "ONLINE" in {message["connectionState"] for message in capture.of("connection")}
+
+    summary = subprocess.run(
+        [PYTHON, "-m", "bench.report", str(tmp_path / f"run-n5-{run_id}.json"), "--output", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert "| run | 5 | 3 | 2 |" in summary.stdout
+    assert (tmp_path / "latest.png").stat().st_size > 0
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _answers(base_url: str) -> bool:
+    try:
+        return requests.get(f"{base_url}/robot", timeout=2).status_code == 200
+    except requests.RequestException:
+        return False
