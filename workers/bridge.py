@@ -162,6 +162,8 @@ class Bridge:
         seen: dict[str, float] = {}
         disconnected: set[str] = set()  # a later state in the same batch reconnects
         for topic, payload in batch:
+            if not payload:
+                continue  # clearing a retained message (connection, factsheet) is not a message
             try:
                 identity, kind = parse_topic(topic)
                 name = self.directory.name(identity)

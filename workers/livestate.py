@@ -4,6 +4,7 @@ The bridge writes here on every message (cheap, in memory); the dispatch step re
 PostgreSQL, so the database sees a write only when something a user or the engine cares about changed.
 """
 
+import threading
 from functools import cache
 
 import redis
@@ -32,10 +33,21 @@ return 2
 STALE, UNCHANGED, CHANGED = 0, 1, 2
 
 
+_client_lock = threading.Lock()
+
+
 @cache
-def client() -> redis.Redis:
-    """One connection pool per process (redis-py pools are thread-safe and fork-aware)."""
+def _cached_client() -> redis.Redis:
     return redis.Redis.from_url(settings.REDIS_URL)
+
+
+def client() -> redis.Redis:
+    """One connection pool per process (redis-py pools are thread-safe and fork-aware).
+
+    The lock makes the first call single: two threads must not each build a client, or the one thrown
+    away closes connections the other is using."""
+    with _client_lock:
+        return _cached_client()
 
 
 @cache
