@@ -87,9 +87,12 @@ DATABASES = {
         "PASSWORD": env_str("FLEET_DB_PASSWORD", ""),
         "HOST": env_str("FLEET_DB_HOST", "127.0.0.1"),
         "PORT": env_int("FLEET_DB_PORT", 5432),
-        # Persistent connections: no connection setup per request or per task.
+        # Persistent connections: no connection setup per request or per task, and no health-check
+        # query either (a broken connection is noticed by its first failing query and replaced).
         "CONN_MAX_AGE": None,
-        "CONN_HEALTH_CHECKS": True,
+        "CONN_HEALTH_CHECKS": False,
+        # Server-side binding lets psycopg prepare the hot statements: PostgreSQL plans them once.
+        "OPTIONS": {"server_side_binding": True, "prepare_threshold": 2},
     }
 }
 
@@ -145,6 +148,9 @@ CELERY_TASK_REJECT_ON_WORKER_LOST = True
 CELERY_WORKER_PREFETCH_MULTIPLIER = env_int("FLEET_CELERY_PREFETCH", 4)
 CELERY_TASK_ALWAYS_EAGER = env_bool("FLEET_CELERY_EAGER", False)
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
+# Celery's Django fixup closes the database connection around every task unless told to reuse it: that
+# would cost a new PostgreSQL backend per task. Reuse it (Django still drops broken connections).
+CELERY_DB_REUSE_MAX = 1_000_000_000
 
 # --- MQTT and VDA 5050 ----------------------------------------------------------------------------
 MQTT_HOST = env_str("FLEET_MQTT_HOST", "127.0.0.1")

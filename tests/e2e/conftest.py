@@ -1,6 +1,6 @@
 """End-to-end harness: real bridge, worker, beat and simulator processes against the test database.
 
-The server processes start once per session (restartable by tests that kill them); each test starts its
+The server processes start once for this package (restartable by tests that kill them); each test starts its
 own simulator with robots named uniquely, so tests never see each other's robots. Every order and instant
 action published during the session is recorded and validated against the official JSON schema.
 """
@@ -80,9 +80,14 @@ class Process:
             os.killpg(self.popen.pid, sig)
 
     def kill(self, sig: int = signal.SIGKILL) -> None:
-        """Send `sig` (SIGKILL by default) and wait for the process to end."""
+        """Send `sig` (SIGKILL by default) and wait for the process to end; SIGKILL it if it does not."""
         self.send(sig)
-        if self.popen is not None:
+        if self.popen is None:
+            return
+        try:
+            self.popen.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self.send(signal.SIGKILL)
             self.popen.wait(timeout=30)
 
     def stop(self) -> None:
@@ -111,7 +116,7 @@ class Stack:
 
 
 class Recorder:
-    """Every order and instant action published on the broker during the session."""
+    """Every order and instant action published on the broker while the end-to-end tests run."""
 
     def __init__(self) -> None:
         self.messages: list[tuple[str, dict[str, Any]]] = []
@@ -139,7 +144,7 @@ class Recorder:
         self.client.disconnect()
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def recorder() -> Iterator[Recorder]:
     recorder = Recorder()
     yield recorder
@@ -148,7 +153,7 @@ def recorder() -> Iterator[Recorder]:
         validate_message(topic.rsplit("/", 1)[-1], message["version"], message)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def stack(
     django_db_setup: None,
     django_db_blocker: Any,
