@@ -12,9 +12,10 @@ from fleet.api import QueryValidationError, object_get
 from missions.choices import MissionState
 from missions.filters import MissionFilter
 from missions.models import Mission
-from robots.models import InstantAction
+from robots.models import InstantAction, Robot
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
+UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -64,11 +65,20 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
         )
     )
     pending = Mission.objects.filter(state=MissionState.PENDING, deadline__lte=now)
+    # Queued missions no step has looked at, on robots that run nothing: a creation that raced with the
+    # end of the robot's previous mission.
+    unnoticed = Mission.objects.filter(
+        state=MissionState.PENDING,
+        waiting_reason__isnull=True,
+        created_at__lte=now - timedelta(seconds=UNNOTICED_MISSION_SECONDS),
+        robot__in=Robot.objects.values("name"),
+    ).exclude(robot__in=Mission.objects.filter(state=MissionState.RUNNING).values("robot"))
     actions = InstantAction.objects.filter(status__isnull=True).filter(
         Q(sent_at__isnull=True) | Q(sent_at__lte=action_resend)
     )
     names = set(running.values_list("robot", flat=True))
     names.update(pending.values_list("robot", flat=True))
+    names.update(unnoticed.values_list("robot", flat=True))
     names.update(actions.values_list("robot_id", flat=True))
     return sorted(names)
 

@@ -3,7 +3,7 @@
 from collections.abc import Mapping
 from typing import Any
 
-from django.db.models import QuerySet
+from django.db.models import OuterRef, QuerySet
 
 from fleet.api import QueryValidationError, object_get
 from robots.filters import RobotFilter
@@ -37,6 +37,10 @@ def robot_address(robot: Robot) -> RobotAddress:
     )
 
 
-def robot_unfinished_instant_actions(*, robot: Robot) -> QuerySet[InstantAction]:
+def robot_unfinished_instant_actions(*, robot: Robot | OuterRef) -> QuerySet[InstantAction]:
     """Instant actions the robot has not yet reported FINISHED or FAILED, oldest first."""
-    return robot.instant_actions.exclude(status__in=FINAL_ACTION_STATUSES).order_by("created_at")
+    return (
+        InstantAction.objects.filter(robot=robot)
+        .exclude(status__in=FINAL_ACTION_STATUSES)
+        .order_by("created_at")
+    )
