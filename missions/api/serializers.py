@@ -1,6 +1,8 @@
 """Mission API bodies: the mission a client submits, its tree's nodes, route updates, and the mission
 object every endpoint returns. The node serializers' docstrings are also the GET /behaviors descriptions."""
 
+from datetime import datetime
+from typing import Any
 from urllib.parse import urlsplit
 
 from drf_spectacular.utils import extend_schema_field
@@ -171,7 +173,11 @@ class MissionSpecSerializer(SpecSerializer):
         validators=[validate_positive],
         help_text="Seconds the mission may run before it fails.",
     )
-    deadline = serializers.DateTimeField(allow_null=True, default=None, help_text="Stored, not enforced.")
+    deadline = serializers.DateTimeField(
+        allow_null=True,
+        default=None,
+        help_text="A mission still queued at its deadline never starts, one still running fails (DEADLINE).",
+    )
     needs_canceled = serializers.BooleanField(default=False, help_text="Set by POST /mission/{name}/cancel.")
     update_nodes = RouteUpdatesField(
         allow_null=True,
@@ -213,3 +219,44 @@ class MissionSerializer(MissionSpecSerializer):
     name = serializers.CharField()
     status = MissionStatusSerializer(source="*")
     lifecycle = serializers.ChoiceField(choices=Lifecycle.choices)
+
+    def to_representation(self, instance: Mission) -> dict[str, Any]:
+        """The declared fields' output, built directly: the stored tree is the one this API validated
+        (defaults applied), and the generic nested serializers cost more than the rest of a request.
+        Tests check that both agree."""
+        return {
+            "robot": instance.robot,
+            "mission_tree": [
+                {
+                    "name": node["name"],
+                    "parent": node["parent"],
+                    **{kind: node.get(kind) for kind in NODE_KINDS},
+                }
+                for node in instance.mission_tree
+            ],
+            "timeout": instance.timeout,
+            "deadline": _datetime(instance.deadline),
+            "needs_canceled": instance.needs_canceled,
+            "update_nodes": instance.update_nodes,
+            "name": instance.name,
+            "status": {
+                "state": instance.state,
+                "current_node": instance.current_node,
+                "node_status": instance.node_status,
+                "task_status": instance.task_status,
+                "start_timestamp": _datetime(instance.start_timestamp),
+                "end_timestamp": _datetime(instance.end_timestamp),
+                "failure_reason": instance.failure_reason,
+                "failure_category": instance.failure_category,
+                "waiting_reason": instance.waiting_reason,
+            },
+            "lifecycle": instance.lifecycle,
+        }
+
+
+NODE_KINDS = tuple(name for name in MissionNodeSerializer._declared_fields if name not in ("name", "parent"))
+_DATETIME = serializers.DateTimeField()
+
+
+def _datetime(value: datetime | None) -> str | None:
+    return None if value is None else _DATETIME.to_representation(value)
