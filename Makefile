@@ -27,3 +27,7 @@ test: install
 
 lint: install
 	$(VENV)/bin/ruff check .
+
+# The benchmark: its own stack, the runs of bench/suite.py, bench/latest.md and .png (BENCH_SUITE=quick for a smoke run).
+bench: install
+	$(PY) -m bench.suite --suite $(or $(BENCH_SUITE),full)
