@@ -38,6 +38,3 @@ class NodeKind(models.TextChoices):
     NOTIFY = "notify"
     CONSTANT = "constant"
 
-
-COMPOSITE_KINDS = frozenset({NodeKind.SELECTOR, NodeKind.SEQUENCE})
-ORDER_KINDS = frozenset({NodeKind.ROUTE, NodeKind.MOVE, NodeKind.ACTION})

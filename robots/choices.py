@@ -45,8 +45,6 @@ class InstantActionsKey(models.TextChoices):
     INSTANT_ACTIONS = "instantActions"
 
 
-# Robot states in which the robot is busy with work of its own (reference: "running").
-RUNNING_STATES = frozenset({RobotState.ON_TASK, RobotState.MAP_DEPLOYMENT, RobotState.CHARGING})
 # States from which teleop may be switched on or off.
 TELEOP_ALLOWED_STATES = frozenset(
     {RobotState.IDLE, RobotState.ON_TASK, RobotState.MAP_DEPLOYMENT, RobotState.TELEOP}

@@ -76,10 +76,6 @@ def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:
     pipe.zadd(LAST_SEEN, dict.fromkeys(names, at))
 
 
-def mark_online(name: str) -> bool:
-    """True if the robot was not online before (a reconnect)."""
-    return bool(client().sadd(ONLINE_SET, name))
-
 
 def mark_offline(name: str) -> bool:
     """True if the robot was online before."""

@@ -29,7 +29,8 @@ def new_client(role: str) -> mqtt.Client:
 
 
 class Publisher:
-    """A process-wide publishing client; paho queues messages while the broker is unreachable."""
+    """A process-wide publishing client. While the broker is unreachable, QoS 0 messages are dropped;
+    the engine re-sends whatever the robot does not acknowledge."""
 
     def __init__(self) -> None:
         self._client = new_client("publisher")
