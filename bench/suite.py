@@ -86,6 +86,8 @@ PROCESSES = {
 SUITES = {
     "quick": {"saturation-n10": ["--nodes", "1", "--robots", "10", "--duration", "10", "--warmup", "3"]},
     "full": {
+        # Idle first: after a saturated run a stack is still working off its backlog.
+        "idle-n2000": ["--mode", "idle", "--robots", "2000", "--duration", "60", "--warmup", "60"],
         "saturation-n100": ["--nodes", "1", "--robots", "100", "--duration", "60", "--warmup", "10"],
         "saturation-n500": ["--nodes", "1", "--robots", "500", "--duration", "60", "--warmup", "20"],
         "realistic-n1000": [
@@ -112,9 +114,9 @@ SUITES = {
             "--warmup",
             "40",
         ],
-        "idle-n2000": ["--mode", "idle", "--robots", "2000", "--duration", "60", "--warmup", "60"],
     },
 }
+SUITES["idle"] = {"idle-n2000": SUITES["full"]["idle-n2000"]}
 
 
 @contextmanager
