@@ -37,4 +37,3 @@ class NodeKind(models.TextChoices):
     ACTION = "action"
     NOTIFY = "notify"
     CONSTANT = "constant"
-

@@ -76,7 +76,6 @@ def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:
     pipe.zadd(LAST_SEEN, dict.fromkeys(names, at))
 
 
-
 def mark_offline(name: str) -> bool:
     """True if the robot was online before."""
     return bool(client().srem(ONLINE_SET, name))

@@ -9,7 +9,6 @@ and the server's, must pass the official VDA 5050 2.0.0 schema.
 from __future__ import annotations
 
 import json
-import os
 import socket
 import subprocess
 import threading
@@ -23,10 +22,9 @@ import paho.mqtt.client as mqtt
 import pytest
 import requests
 from django.conf import settings
-from django.db import connection
 
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
-from tests.e2e.conftest import CELERY, PYTHON, ROOT, SERVER_ENV, Stack, wait_for
+from tests.e2e.conftest import PYTHON, ROOT, start_servers, wait_for
 from tests.vda5050.schemas import validate_message
 from vda5050.codec import parse_state
 
@@ -39,21 +37,14 @@ GENERATOR_TIMEOUT = 180  # s; generous, the machine is shared
 @pytest.fixture(scope="module")
 def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """Base URL of a complete server: API, bridge, worker and beat against the test database."""
-    env = {
-        **os.environ,
-        **SERVER_ENV,
-        "DJANGO_SETTINGS_MODULE": "fleet.settings",
-        "FLEET_DB_NAME": connection.settings_dict["NAME"],
-        "FLEET_REDIS_URL": settings.REDIS_URL,
-        "PYTHONUNBUFFERED": "1",
-    }
     logs = tmp_path_factory.mktemp("bench-stack-logs")
-    stack = Stack(env=env, logs=logs)
+    stack = start_servers(logs)
     port = _free_port()
+    gunicorn = str(Path(PYTHON).with_name("gunicorn"))
     stack.add(
         "api",
         [
-            str(Path(PYTHON).with_name("gunicorn")),
+            gunicorn,
             "fleet.wsgi",
             "-b",
             f"127.0.0.1:{port}",
@@ -64,26 +55,6 @@ def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> I
             "--no-control-socket",
         ],
     )
-    stack.add("bridge", [PYTHON, "manage.py", "mqtt_bridge"])
-    stack.add(
-        "worker",
-        [
-            CELERY,
-            "-A",
-            "fleet",
-            "worker",
-            "-Q",
-            "steps,notify",
-            "--pool",
-            "threads",
-            "--concurrency",
-            "4",
-            "--without-heartbeat",
-            "--without-gossip",
-            "--without-mingle",
-        ],
-    )
-    stack.add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(logs / "beat-schedule")])
     base_url = f"http://127.0.0.1:{port}"
     try:
         wait_for(lambda: _answers(base_url), message=f"the API on {base_url}")

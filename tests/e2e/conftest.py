@@ -153,16 +153,8 @@ def recorder() -> Iterator[Recorder]:
         validate_message(topic.rsplit("/", 1)[-1], message["version"], message)
 
 
-@pytest.fixture(scope="package")
-def stack(
-    django_db_setup: None,
-    django_db_blocker: Any,
-    recorder: Recorder,
-    tmp_path_factory: pytest.TempPathFactory,
-) -> Iterator[Stack]:
-    import redis
-
-    redis.Redis.from_url(settings.REDIS_URL).flushdb()
+def start_servers(logs: Path) -> Stack:
+    """Bridge, worker and beat against the test database and the test Redis, time compressed."""
     env = {
         **os.environ,
         **SERVER_ENV,
@@ -171,33 +163,32 @@ def stack(
         "FLEET_REDIS_URL": settings.REDIS_URL,
         "PYTHONUNBUFFERED": "1",
     }
-    logs = tmp_path_factory.mktemp("stack-logs")
     stack = Stack(env=env, logs=logs)
-    stack.add("bridge", [PYTHON, "manage.py", "mqtt_bridge"])
-    stack.add(
+    worker = [
         "worker",
-        [
-            CELERY,
-            "-A",
-            "fleet",
-            "worker",
-            "-Q",
-            "steps,notify",
-            "--pool",
-            "threads",
-            "--concurrency",
-            "4",
-            "--loglevel",
-            "INFO",
-            "--without-heartbeat",
-            "--without-gossip",
-            "--without-mingle",
-        ],
-    )
-    stack.add(
-        "beat",
-        [CELERY, "-A", "fleet", "beat", "--loglevel", "INFO", "--schedule", str(logs / "beat-schedule")],
-    )
+        "-Q",
+        "steps,notify",
+        "--pool",
+        "threads",
+        "--concurrency",
+        "4",
+        "--without-heartbeat",
+    ]
+    stack.add("bridge", [PYTHON, "manage.py", "mqtt_bridge"])
+    stack.add("worker", [CELERY, "-A", "fleet", *worker, "--without-gossip", "--without-mingle"])
+    stack.add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(logs / "beat-schedule")])
+    return stack
+
+
+@pytest.fixture(scope="package")
+def stack(
+    django_db_setup: None, recorder: Recorder, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[Stack]:
+    import redis
+
+    redis.Redis.from_url(settings.REDIS_URL).flushdb()
+    logs = tmp_path_factory.mktemp("stack-logs")
+    stack = start_servers(logs)
     yield stack
     stack.stop()
     print(f"stack logs in {logs}")
