@@ -100,6 +100,10 @@ def header_key(name: str, topic: str) -> str:
     return f"{PREFIX}:header:{name}:{topic}"
 
 
-def next_header_id(name: str, topic: str) -> int:
-    """VDA 5050 headerId: one counter per robot and topic, +1 per message sent (resends included)."""
-    return int(client().incr(header_key(name, topic))) - 1
+def next_header_ids(name: str, topics: list[str]) -> list[int]:
+    """VDA 5050 headerIds for messages about to be sent on `topics`, in one round trip: one counter per
+    robot and topic, +1 per message sent (resends included)."""
+    pipe = client().pipeline(transaction=False)
+    for topic in topics:
+        pipe.incr(header_key(name, topic))
+    return [int(value) - 1 for value in pipe.execute()]

@@ -2,6 +2,8 @@
 
 from datetime import UTC, datetime
 
+import redis
+
 from missions.dispatch import Outgoing
 from vda5050.codec import encode, header_for
 from vda5050.models import OrderContent
@@ -10,15 +12,22 @@ from workers import livestate, metrics
 from workers.mqtt import publisher
 
 
-def publish(*, robot: str, address: RobotAddress, instant_actions_key: str, messages: list[Outgoing]) -> None:
+def publish(
+    *,
+    robot: str,
+    address: RobotAddress,
+    instant_actions_key: str,
+    messages: list[Outgoing],
+    counters: redis.client.Pipeline,
+) -> None:
+    """Send `messages`; their counts are queued on `counters` (the caller executes it)."""
     if not messages:
         return
+    topics = [Topic.ORDER if isinstance(m.content, OrderContent) else Topic.INSTANT_ACTIONS for m in messages]
+    header_ids = livestate.next_header_ids(robot, topics)
     now = datetime.now(UTC)
-    pipe = livestate.client().pipeline(transaction=False)
-    for message in messages:
-        topic = Topic.ORDER if isinstance(message.content, OrderContent) else Topic.INSTANT_ACTIONS
-        header = header_for(address, header_id=livestate.next_header_id(robot, topic), at=now)
+    for message, topic, header_id in zip(messages, topics, header_ids, strict=True):
+        header = header_for(address, header_id=header_id, at=now)
         payload = encode(message.content, header, instant_actions_key=instant_actions_key)
         publisher().publish(topic_for(address, topic), payload)
-        metrics.count(metrics.MESSAGES_OUT, pipe=pipe, topic=topic.value)
-    pipe.execute()
+        metrics.count(metrics.MESSAGES_OUT, pipe=counters, topic=topic.value)

@@ -11,7 +11,7 @@ from django.conf import settings
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished, robot_step
 from robots.services import robot_check_heartbeats
-from workers import metrics, steps
+from workers import livestate, metrics, steps
 from workers.publish import publish
 
 logger = logging.getLogger(__name__)
@@ -24,23 +24,28 @@ RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 def step_robot(name: str, requested_at: float | None = None) -> None:
     steps.step_started(name)
     outcome = robot_step(name=name)
+    counters = livestate.client().pipeline(transaction=False)
     if outcome.address is not None:
         publish(
             robot=name,
             address=outcome.address,
             instant_actions_key=outcome.instant_actions_key,
             messages=outcome.messages,
+            counters=counters,
         )
     for mission, node in outcome.notifies:
         run_notify.apply_async((mission, node), queue=settings.NOTIFY_QUEUE)
     if requested_at is not None and outcome.messages:
-        metrics.observe_step_latency(time.time() - requested_at)
-    if outcome.rejections:
-        metrics.count(metrics.ORDER_REJECTIONS, by=outcome.rejections)
+        metrics.observe_step_latency(time.time() - requested_at, pipe=counters)
+    metrics.count(metrics.ORDER_REJECTIONS, by=outcome.rejections, pipe=counters)
     for mission in outcome.finished:
         metrics.count(
-            metrics.MISSIONS_FINISHED, state=mission.state, failure_category=mission.failure_category or ""
+            metrics.MISSIONS_FINISHED,
+            pipe=counters,
+            state=mission.state,
+            failure_category=mission.failure_category or "",
         )
+    counters.execute()
 
 
 @shared_task(name="fleet.run_notify", bind=True, ignore_result=True, max_retries=None)
