@@ -62,6 +62,17 @@ class Mission(models.Model):
             models.Index(fields=["state"], name="mission_state_idx"),
             models.Index(fields=["start_timestamp"], name="mission_start_idx"),
             models.Index(fields=["lifecycle"], name="mission_lifecycle_idx"),
+            # Beat's sweep looks for queued missions past their deadline and queued missions no step has
+            # seen; partial indexes keep that cheap however many finished missions the table holds.
+            models.Index(
+                fields=["deadline"], condition=models.Q(state="PENDING"), name="mission_pending_deadline_idx"
+            ),
+            models.Index(
+                fields=["created_at"],
+                condition=models.Q(state="PENDING", waiting_reason__isnull=True),
+                name="mission_unnoticed_idx",
+            ),
+            models.Index(fields=["robot"], condition=models.Q(state="RUNNING"), name="mission_running_idx"),
         ]
 
     def __str__(self) -> str:
