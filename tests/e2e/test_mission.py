@@ -38,9 +38,13 @@ def test_three_waypoint_route_completes_with_robot_on_task_then_idle(api, simula
     assert sequence[-1] == ("COMPLETED", 0)
     assert [state for state, _ in sequence if state != "PENDING"] in (["RUNNING", "COMPLETED"], ["COMPLETED"])
     assert mission["status"]["start_timestamp"] <= mission["status"]["end_timestamp"]
-    final = wait_robot(api, robot, state="IDLE")
-    assert math.isclose(final["status"]["pose"]["x"], 2, abs_tol=0.2)
-    assert math.isclose(final["status"]["pose"]["y"], 1, abs_tol=0.2)
+    wait_robot(api, robot, state="IDLE")
+
+    def arrived() -> bool:  # the pose reaches the database with the bridge's next status write
+        pose = get(api, "robot", robot)["status"]["pose"]
+        return math.isclose(pose["x"], 2, abs_tol=0.2) and math.isclose(pose["y"], 1, abs_tol=0.2)
+
+    wait_for(arrived, message="the robot's pose at the last waypoint")
     orders = recorder.for_robot(robot, "order")
     assert len({o["orderId"] for o in orders}) == 1
     assert [n["sequenceId"] for n in orders[0]["nodes"]] == [0, 2, 4, 6]
