@@ -23,7 +23,8 @@ import orjson
 import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
-from django.db import connection
+from django.db import DatabaseError, connection
+from django.test import TransactionTestCase
 from rest_framework.test import APIClient
 
 from tests.vda5050.schemas import validate_message
@@ -43,6 +44,23 @@ SERVER_ENV = {
     "FLEET_VISIBILITY_TIMEOUT": "5",
     "FLEET_LOG_LEVEL": "INFO",
 }
+
+
+def _flush_retrying_on_deadlock(self: TransactionTestCase) -> None:
+    """The flush after a test can deadlock with a step the worker is still running for that test's robot;
+    PostgreSQL then aborts one of them. The step is retried by the engine; the flush is retried here."""
+    for attempt in range(5):
+        try:
+            _flush(self)
+            return
+        except DatabaseError:
+            if attempt == 4:
+                raise
+            time.sleep(0.5)
+
+
+_flush = TransactionTestCase._fixture_teardown
+TransactionTestCase._fixture_teardown = _flush_retrying_on_deadlock
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float = WAIT_SECONDS, message: str = "") -> Any:
@@ -235,6 +253,22 @@ def simulator(stack: Stack, tmp_path: Path) -> Iterator[Callable[..., Simulator]
     yield start
     for process in started:
         process.stop()
+
+
+@pytest.fixture
+def simulated_robot(
+    api: APIClient, simulator: Callable[..., Simulator], unique: Callable[[str], str]
+) -> Callable[[str], str]:
+    """A robot created through the API and simulated at (0, 0), named uniquely from `base`."""
+
+    def create(base: str) -> str:
+        name = unique(base)
+        simulator(f"{name},0,0")
+        response = api.post("/robot", {"name": name}, format="json")
+        assert response.status_code == 200, response.content
+        return name
+
+    return create
 
 
 @pytest.fixture

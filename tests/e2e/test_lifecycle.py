@@ -30,10 +30,8 @@ def cancel_orders_sent(recorder, robot: str) -> int:
     )
 
 
-def test_cancel_and_delete_queued_missions(api, simulator, unique):
-    robot = unique("busy")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_cancel_and_delete_queued_missions(api, unique, simulated_robot):
+    robot = simulated_robot("busy")
     first, canceled, deleted, last = (unique(n) for n in ("first", "canceled", "deleted", "last"))
     post_mission(api, first, robot, [route("r", (5, 0))])
     post_mission(api, canceled, robot, [route("r", (0, 0))])
@@ -51,10 +49,10 @@ def test_cancel_and_delete_queued_missions(api, simulator, unique):
     assert status["start_timestamp"] is None and status["failure_category"] == "CANCELED"
 
 
-def test_cancel_running_mission_sends_cancel_order_then_next_mission_runs(api, simulator, unique, recorder):
-    robot = unique("busy")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_cancel_running_mission_sends_cancel_order_then_next_mission_runs(
+    api, unique, recorder, simulated_robot
+):
+    robot = simulated_robot("busy")
     running, following = unique("running"), unique("next")
     post_mission(api, running, robot, [route("0", (300, 0)), route("1", (0, 0))])
     post_mission(api, following, robot, [route("r", (0, 1))])
@@ -73,10 +71,8 @@ def test_cancel_running_mission_sends_cancel_order_then_next_mission_runs(api, s
     assert response.json()["error_code"] == "USAGE"
 
 
-def test_delete_running_mission_cancels_and_removes_it(api, simulator, unique, recorder):
-    robot = unique("busy")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_delete_running_mission_cancels_and_removes_it(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("busy")
     name = unique("m")
     post_mission(api, name, robot, [route("r", (300, 0))])
     wait_mission(api, name, {"RUNNING"})
@@ -87,10 +83,8 @@ def test_delete_running_mission_cancels_and_removes_it(api, simulator, unique, r
     wait_robot(api, robot, state="IDLE")
 
 
-def test_delete_and_cancel_completed_mission(api, simulator, unique):
-    robot = unique("quick")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_delete_and_cancel_completed_mission(api, unique, simulated_robot):
+    robot = simulated_robot("quick")
     done, removed = unique("done"), unique("removed")
     post_mission(api, done, robot, [route("r", (1, 0))])
     post_mission(api, removed, robot, [route("r", (0, 0))])
@@ -105,10 +99,8 @@ def test_delete_and_cancel_completed_mission(api, simulator, unique):
     assert not Mission.objects.filter(name=removed).exists()
 
 
-def test_update_pending_mission_uses_new_waypoints(api, simulator, unique, recorder):
-    robot = unique("upd")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_update_pending_mission_uses_new_waypoints(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("upd")
     blocker, name = unique("blocker"), unique("m")
     post_mission(api, blocker, robot, [route("r", (3, 0))])
     post_mission(api, name, robot, [route("r", (1, 1))])
@@ -122,10 +114,8 @@ def test_update_pending_mission_uses_new_waypoints(api, simulator, unique, recor
     )
 
 
-def test_update_running_route_cancels_stale_order_and_sends_new_one(api, simulator, unique, recorder):
-    robot = unique("upd")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_update_running_route_cancels_stale_order_and_sends_new_one(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("upd")
     name = unique("m")
     post_mission(api, name, robot, [route("r", (300, 0))])
     wait_mission(api, name, {"RUNNING"})
@@ -141,10 +131,8 @@ def test_update_running_route_cancels_stale_order_and_sends_new_one(api, simulat
     assert cancel_orders_sent(recorder, robot) >= 1
 
 
-def test_update_completed_mission_is_rejected(api, simulator, unique):
-    robot = unique("upd")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_update_completed_mission_is_rejected(api, unique, simulated_robot):
+    robot = simulated_robot("upd")
     name = unique("m")
     post_mission(api, name, robot, [route("r", (1, 0))])
     wait_mission(api, name)
@@ -153,19 +141,15 @@ def test_update_completed_mission_is_rejected(api, simulator, unique):
     assert response.status_code == 400
 
 
-def test_delete_idle_robot_removes_it(api, simulator, unique):
-    robot = unique("gone")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_delete_idle_robot_removes_it(api, unique, simulated_robot):
+    robot = simulated_robot("gone")
     wait_robot(api, robot, online=True)
     assert api.delete(f"/robot/{robot}").json() == {"detail": f"{robot} is PENDING_DELETE"}
     wait_for(lambda: not Robot.objects.filter(name=robot).exists(), message="robot removed")
 
 
-def test_delete_robot_on_task_fails_its_mission(api, simulator, unique):
-    robot = unique("gone")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_delete_robot_on_task_fails_its_mission(api, unique, simulated_robot):
+    robot = simulated_robot("gone")
     name, queued = unique("m"), unique("queued")
     post_mission(api, name, robot, [route("r", (300, 0))])
     post_mission(api, queued, robot, [route("r", (0, 0))])
@@ -178,10 +162,8 @@ def test_delete_robot_on_task_fails_its_mission(api, simulator, unique):
     assert mission_state(api, queued) == "PENDING"  # reference: queued missions stay
 
 
-def test_pending_mission_past_deadline_never_starts(api, simulator, unique, recorder):
-    robot = unique("dl")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_pending_mission_past_deadline_never_starts(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("dl")
     blocker, name = unique("blocker"), unique("m")
     post_mission(api, blocker, robot, [route("r", (15, 0))])
     deadline = (datetime.now(UTC) + timedelta(seconds=0.5)).isoformat()
@@ -193,10 +175,8 @@ def test_pending_mission_past_deadline_never_starts(api, simulator, unique, reco
     assert wait_mission(api, blocker)["status"]["state"] == "COMPLETED"
 
 
-def test_running_mission_past_deadline_fails_and_robot_stops(api, simulator, unique, recorder):
-    robot = unique("dl")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_running_mission_past_deadline_fails_and_robot_stops(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("dl")
     name = unique("m")
     deadline = (datetime.now(UTC) + timedelta(seconds=2)).isoformat()
     post_mission(api, name, robot, [route("r", (500, 0))], deadline=deadline)
@@ -220,10 +200,8 @@ def test_critical_battery_holds_missions_until_it_recovers(api, simulator, uniqu
     assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
 
 
-def test_action_that_robot_cannot_do_fails_leaf(api, simulator, unique):
-    robot = unique("strict")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_action_that_robot_cannot_do_fails_leaf(api, unique, simulated_robot):
+    robot = simulated_robot("strict")
     name = unique("m")
     post_mission(api, name, robot, [action("weird", action_type="fly_to_the_moon")])
     status = wait_mission(api, name)["status"]

@@ -20,10 +20,8 @@ from tests.e2e.helpers import (
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 
-def test_three_waypoint_route_completes_with_robot_on_task_then_idle(api, simulator, unique, recorder):
-    robot = unique("carter")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_three_waypoint_route_completes_with_robot_on_task_then_idle(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("carter")
     wait_robot(api, robot, online=True)
     recorder_ = StatusRecorder(api, unique("m"))
     name = recorder_.name
@@ -50,10 +48,8 @@ def test_three_waypoint_route_completes_with_robot_on_task_then_idle(api, simula
     assert [n["sequenceId"] for n in orders[0]["nodes"]] == [0, 2, 4, 6]
 
 
-def test_routes_in_sequence_step_current_node(api, simulator, unique):
-    robot = unique("carter")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_routes_in_sequence_step_current_node(api, unique, simulated_robot):
+    robot = simulated_robot("carter")
     name = unique("m")
     recorder_ = StatusRecorder(api, name)
     post_mission(api, name, robot, [route("a", (1, 0)), route("b", (1, 1)), route("c", (0, 1))])
@@ -91,10 +87,8 @@ def test_failure_period_fails_every_second_mission_fifo(api, simulator, unique):
     assert starts == sorted(starts)
 
 
-def test_timeout_fails_mission_and_sends_cancel_order(api, simulator, unique, recorder):
-    robot = unique("slow")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_timeout_fails_mission_and_sends_cancel_order(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("slow")
     name = unique("m")
     post_mission(api, name, robot, [route("far", (500, 0))], timeout=1)
     mission = wait_mission(api, name)
@@ -132,10 +126,8 @@ def test_move_nodes_distance_and_rotation(api, simulator, unique):
     assert math.isclose(pose["theta"], math.pi / 2, abs_tol=0.1)
 
 
-def test_route_then_actions_flat_tree(api, simulator, unique, recorder):
-    robot = unique("worker")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_route_then_actions_flat_tree(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("worker")
     name = unique("m")
     tree = [route("go", (1, 1)), action("work", should_fail=0, time=0.2), route("back", (0, 0))]
     mission = wait_mission(api, post_mission(api, name, robot, tree)["name"])
@@ -148,10 +140,8 @@ def test_route_then_actions_flat_tree(api, simulator, unique, recorder):
     assert parameters == {"should_fail": 0, "time": 0.2}  # typed values, not strings
 
 
-def test_action_failure_fails_mission_with_error(api, simulator, unique):
-    robot = unique("worker")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_action_failure_fails_mission_with_error(api, unique, simulated_robot):
+    robot = simulated_robot("worker")
     name = unique("m")
     tree = [route("go", (1, 0)), action("fail", should_fail=1, time=0.1), route("never", (0, 0))]
     mission = wait_mission(api, post_mission(api, name, robot, tree)["name"])
@@ -163,10 +153,8 @@ def test_action_failure_fails_mission_with_error(api, simulator, unique):
     assert status["failure_category"] == "ROBOT_APP"
 
 
-def test_selector_recovers_from_failing_action(api, simulator, unique):
-    robot = unique("worker")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_selector_recovers_from_failing_action(api, unique, simulated_robot):
+    robot = simulated_robot("worker")
     name = unique("m")
     tree = [
         route("start", (1, 0)),
@@ -187,10 +175,8 @@ def test_selector_recovers_from_failing_action(api, simulator, unique):
     assert nodes == sorted(nodes) and nodes[-1] == 3
 
 
-def test_sequence_with_failing_action_fails_and_skips_sibling(api, simulator, unique):
-    robot = unique("worker")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_sequence_with_failing_action_fails_and_skips_sibling(api, unique, simulated_robot):
+    robot = simulated_robot("worker")
     name = unique("m")
     tree = [
         route("start", (1, 0)),
@@ -204,10 +190,8 @@ def test_sequence_with_failing_action_fails_and_skips_sibling(api, simulator, un
     assert status["node_status"]["after"]["state"] == "PENDING"
 
 
-def test_three_layer_tree_with_constants_and_hyphenated_names(api, simulator, unique):
-    robot = unique("worker")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_three_layer_tree_with_constants_and_hyphenated_names(api, unique, simulated_robot):
+    robot = simulated_robot("worker")
     name = unique("m")
     tree = [
         composite("outer-seq", "sequence"),
@@ -233,10 +217,8 @@ def test_three_layer_tree_with_constants_and_hyphenated_names(api, simulator, un
     }
 
 
-def test_task_status_counts_exactly_reached_waypoints(api, simulator, unique):
-    robot = unique("worker")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_task_status_counts_exactly_reached_waypoints(api, unique, simulated_robot):
+    robot = simulated_robot("worker")
     name = unique("m")
     tree = [
         {

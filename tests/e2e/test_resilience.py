@@ -79,10 +79,8 @@ def publisher():
     client.disconnect()
 
 
-def test_duplicate_and_out_of_order_states_change_nothing(api, simulator, unique, recorder, publisher):
-    robot = unique("dup")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_duplicate_and_out_of_order_states_change_nothing(api, unique, recorder, publisher, simulated_robot):
+    robot = simulated_robot("dup")
     first = post_mission(api, unique("first"), robot, [route("a", (1, 0)), route("b", (1, 1))])["name"]
     assert wait_mission(api, first)["status"]["state"] == "COMPLETED"
     topic = f"uagv/v2/RobotCompany/{robot}/state"
@@ -104,10 +102,8 @@ def test_duplicate_and_out_of_order_states_change_nothing(api, simulator, unique
     assert orjson.loads(livestate.latest_state(robot))["orderId"] != "stale"
 
 
-def test_malformed_messages_are_counted_and_do_not_stop_the_bridge(api, simulator, unique, publisher):
-    robot = unique("junk")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_malformed_messages_are_counted_and_do_not_stop_the_bridge(api, unique, publisher, simulated_robot):
+    robot = simulated_robot("junk")
     wait_robot(api, robot, online=True)
     field = "messages_invalid|topic=state"
     before = int(livestate.client().hget(metrics.COUNTERS, field) or 0)
@@ -121,10 +117,8 @@ def test_malformed_messages_are_counted_and_do_not_stop_the_bridge(api, simulato
     assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
 
 
-def test_metrics_endpoint_exports_fleet_metrics(api, simulator, unique):
-    robot = unique("metrics")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_metrics_endpoint_exports_fleet_metrics(api, unique, simulated_robot):
+    robot = simulated_robot("metrics")
     name = post_mission(api, unique("m"), robot, [route("r", (1, 0))])["name"]
     wait_mission(api, name)
     response = api.get("/metrics")

@@ -89,10 +89,8 @@ def test_warning_errors_do_not_fail_but_fatal_errors_do(api, simulator, unique):
     assert failed["failure_reason"] == "Failure period reached"
 
 
-def test_teleop_via_api_start_and_stop(api, simulator, unique, recorder):
-    robot = unique("tele")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_teleop_via_api_start_and_stop(api, unique, recorder, simulated_robot):
+    robot = simulated_robot("tele")
     wait_robot(api, robot, online=True)
     response = api.post(f"/robot/{robot}/teleop?params=START")
     assert response.status_code == 200 and response.json() == "START teleop action received."
@@ -103,10 +101,8 @@ def test_teleop_via_api_start_and_stop(api, simulator, unique, recorder):
     assert "startTeleop" in types and "stopTeleop" in types
 
 
-def test_teleop_via_pause_order_action(api, simulator, unique):
-    robot = unique("tele")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_teleop_via_pause_order_action(api, unique, simulated_robot):
+    robot = simulated_robot("tele")
     name = unique("m")
     post_mission(
         api, name, robot, [route("go", (1, 0)), action("hold", "pause_order"), route("back", (0, 0))]
@@ -153,10 +149,8 @@ def notify(name: str, url: str, payload: Any) -> dict[str, Any]:
     return {"name": name, "notify": {"url": url, "json_data": payload, "timeout": 5}}
 
 
-def test_notify_followed_by_route_continues(api, simulator, unique, notify_server):
-    robot = unique("notify")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_notify_followed_by_route_continues(api, unique, notify_server, simulated_robot):
+    robot = simulated_robot("notify")
     name = unique("m")
     tree = [route("a", (1, 0)), notify("tell", notify_server.url, {"robot": robot}), route("b", (0, 1))]
     status = wait_mission(api, post_mission(api, name, robot, tree)["name"])["status"]
@@ -166,10 +160,8 @@ def test_notify_followed_by_route_continues(api, simulator, unique, notify_serve
     assert notify_server.received == [{"robot": robot}]
 
 
-def test_notify_retries_retryable_status_then_succeeds(api, simulator, unique, notify_server):
-    robot = unique("notify")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_notify_retries_retryable_status_then_succeeds(api, unique, notify_server, simulated_robot):
+    robot = simulated_robot("notify")
     notify_server.statuses = [503, 500]
     name = unique("m")
     status = wait_mission(
@@ -179,10 +171,8 @@ def test_notify_retries_retryable_status_then_succeeds(api, simulator, unique, n
     assert len(notify_server.received) == 3
 
 
-def test_notify_with_non_retryable_status_fails_mission(api, simulator, unique, notify_server):
-    robot = unique("notify")
-    simulator(f"{robot},0,0")
-    create_robot(api, robot)
+def test_notify_with_non_retryable_status_fails_mission(api, unique, notify_server, simulated_robot):
+    robot = simulated_robot("notify")
     notify_server.statuses = [400]
     name = unique("m")
     status = wait_mission(
