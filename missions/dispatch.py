@@ -28,7 +28,7 @@ ROBOT_APP, TIMEOUT, DEADLINE, CANCELED_CATEGORY = "ROBOT_APP", "TIMEOUT", "DEADL
 CANCEL_ORDER, START_TELEOP, STOP_TELEOP = "cancelOrder", "startTeleop", "stopTeleop"
 FACTSHEET_REQUEST = "factsheetRequest"
 PAUSE_ORDER = "pause_order"  # the reference's action that hands the robot to teleoperation
-FINAL = frozenset({ActionStatus.FINISHED.value, ActionStatus.FAILED.value})
+FINAL = vda_state.FINAL_ACTION_STATUSES  # an instant action in one of these is no longer tracked
 ORDER_KINDS = frozenset({engine.ROUTE, engine.MOVE, engine.ACTION})
 
 TIMED_OUT = "Mission timed out"

@@ -206,7 +206,8 @@ def mission_notify_finished(*, mission: str, node: str, success: bool, error_msg
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.*, EXISTS (
         SELECT 1 FROM {InstantAction._meta.db_table} a
-        WHERE a.robot_id = r.name AND (a.status IS NULL OR a.status NOT IN ('FINISHED', 'FAILED'))
+        WHERE a.robot_id = r.name
+          AND (a.status IS NULL OR a.status NOT IN ({", ".join(f"'{s}'" for s in sorted(dispatch.FINAL))}))
     ) AS has_instant_actions
     FROM {Robot._meta.db_table} r WHERE r.name = %s FOR UPDATE OF r
 """
@@ -368,14 +369,7 @@ def _mission_update_sql(columns: tuple[str, ...]) -> str:
 
 
 def _action_record(action: InstantAction) -> dispatch.ActionRecord:
-    return dispatch.ActionRecord(
-        action_id=action.action_id,
-        action_type=action.action_type,
-        mission=action.mission,
-        status=action.status,
-        sent_at=action.sent_at,
-        send_count=action.send_count,
-    )
+    return dispatch.ActionRecord(**{f.name: getattr(action, f.name) for f in fields(dispatch.ActionRecord)})
 
 
 def _store_actions(

@@ -8,10 +8,8 @@ from django.db.models import OuterRef, QuerySet
 from fleet.api import QueryValidationError, object_get
 from robots.filters import RobotFilter
 from robots.models import InstantAction, Robot
+from vda5050.state import FINAL_ACTION_STATUSES
 from vda5050.topics import RobotAddress
-
-# Statuses after which a robot no longer works on an instant action.
-FINAL_ACTION_STATUSES = ("FINISHED", "FAILED")
 
 
 def robot_get(*, name: str, to_change: bool = False) -> Robot:
@@ -41,6 +39,6 @@ def robot_unfinished_instant_actions(*, robot: Robot | OuterRef) -> QuerySet[Ins
     """Instant actions the robot has not yet reported FINISHED or FAILED, oldest first."""
     return (
         InstantAction.objects.filter(robot=robot)
-        .exclude(status__in=FINAL_ACTION_STATUSES)
+        .exclude(status__in=sorted(FINAL_ACTION_STATUSES))
         .order_by("created_at")
     )
