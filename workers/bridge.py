@@ -1,8 +1,10 @@
 """The MQTT bridge: robots' messages in, live state to Redis, coalesced status to PostgreSQL, steps woken.
 
 Per state message it costs one parse and one pipelined Redis script call; the database sees one batched
-UPDATE per flush period for the robots whose status changed, and a Celery step is requested only when
-something the engine cares about changed (`missions.dispatch.engine_digest`). Several bridges may run at
+UPDATE per flush period for the robots whose status changed, and a step runs only when something the
+engine cares about changed (`missions.dispatch.engine_digest`). The bridge runs those steps itself, on
+threads of its own (`workers.stepper.StepRunner`): a Celery round trip per state would cost more than the
+step. Several bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
 """
@@ -21,6 +23,7 @@ from django.db import close_old_connections, connection
 from psycopg.types.json import Jsonb
 
 from missions.dispatch import engine_digest
+from missions.selectors import robots_with_missions
 from robots.choices import AgvClass
 from robots.models import Robot
 from robots.services import robot_request_factsheet
@@ -31,7 +34,7 @@ from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_versi
 from vda5050.topics import shared_subscription as shared_filter
 from workers import livestate, metrics
 from workers.mqtt import new_client
-from workers.steps import request_steps
+from workers.stepper import StepRunner
 
 logger = logging.getLogger(__name__)
 
@@ -99,6 +102,7 @@ class Bridge:
         self.client = new_client("bridge")
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message
+        self.steps = StepRunner(threads=settings.BRIDGE_STEP_THREADS)
         self._last_flush = time.monotonic()
 
     # --- MQTT thread ---
@@ -122,6 +126,10 @@ class Bridge:
 
     def run_forever(self) -> None:
         self.directory.reload()
+        self.steps.start()
+        # A state stored just before this bridge last stopped may have lost its step: step every robot with
+        # work once (a step that finds nothing to do costs only its reads).
+        self.steps.request(robots_with_missions())
         self.client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
         self.client.loop_start()
         try:
@@ -226,7 +234,7 @@ class Bridge:
             if livestate.mark_offline(name):
                 Robot.objects.filter(name=name).update(online=False)
                 changed.add(name)
-        request_steps(changed | set(came_online), at=received_at)
+        self.steps.request(changed | set(came_online), at=received_at)
 
     def _remember_status(self, name: str, state: State) -> None:
         status = self.status.setdefault(name, RobotStatus())

@@ -1,7 +1,6 @@
 """Celery tasks: thin wrappers that call services and own only queueing and retry policy."""
 
 import logging
-import time
 
 import requests
 from celery import Task, shared_task
@@ -9,10 +8,10 @@ from celery.signals import worker_ready
 from django.conf import settings
 
 from missions import selectors as mission_selectors
-from missions.services import mission_notify_finished, robot_step
+from missions.services import mission_notify_finished
 from robots.services import robot_check_heartbeats
-from workers import livestate, metrics, steps
-from workers.publish import publish
+from workers import steps
+from workers.stepper import run_step
 
 logger = logging.getLogger(__name__)
 
@@ -23,29 +22,7 @@ RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 @shared_task(name="fleet.step_robot", ignore_result=True)
 def step_robot(name: str, requested_at: float | None = None) -> None:
     steps.step_started(name)
-    outcome = robot_step(name=name)
-    counters = livestate.client().pipeline(transaction=False)
-    if outcome.address is not None:
-        publish(
-            robot=name,
-            address=outcome.address,
-            instant_actions_key=outcome.instant_actions_key,
-            messages=outcome.messages,
-            counters=counters,
-        )
-    for mission, node in outcome.notifies:
-        run_notify.apply_async((mission, node), queue=settings.NOTIFY_QUEUE)
-    if requested_at is not None and outcome.messages:
-        metrics.observe_step_latency(time.time() - requested_at, pipe=counters)
-    metrics.count(metrics.ORDER_REJECTIONS, by=outcome.rejections, pipe=counters)
-    for mission in outcome.finished:
-        metrics.count(
-            metrics.MISSIONS_FINISHED,
-            pipe=counters,
-            state=mission.state,
-            failure_category=mission.failure_category or "",
-        )
-    counters.execute()
+    run_step(name, requested_at=requested_at)
 
 
 @shared_task(name="fleet.run_notify", bind=True, ignore_result=True, max_retries=None)

@@ -16,6 +16,8 @@ from vda5050.models import (
 )
 from vda5050.topics import RobotAddress
 from workers import livestate
+from workers.bridge import Bridge
+from workers.stepper import StepRunner
 from workers.steps import step_marker_key
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
@@ -59,7 +61,16 @@ def factsheet_message(robot: Robot | str, factsheet: FactsheetContent) -> tuple[
     return topic(robot, "factsheet"), wire(robot, factsheet)
 
 
-def step_requested(robot: Robot | str) -> bool:
-    """Whether a step was queued for the robot since the marker was last cleared; clears it."""
+def step_requested(bridge: Bridge, robot: Robot | str) -> bool:
+    """Whether the bridge queued a step for the robot since the last check, which empties its queue (a
+    test's bridge never starts its step threads)."""
+    name = robot if isinstance(robot, str) else robot.name
+    queued = name in bridge.steps.queued()
+    bridge.steps = StepRunner(threads=bridge.steps.threads)
+    return queued
+
+
+def worker_step_requested(robot: Robot | str) -> bool:
+    """Whether a Celery step was queued for the robot since the marker was last cleared; clears it."""
     name = robot if isinstance(robot, str) else robot.name
     return bool(livestate.client().delete(step_marker_key(name)))

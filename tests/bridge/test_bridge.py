@@ -18,6 +18,7 @@ from tests.bridge.messages import (
     step_requested,
     topic,
     visualization_message,
+    worker_step_requested,
 )
 from tests.dispatch.builders import error
 from tests.vda5050.samples import full_factsheet
@@ -66,7 +67,7 @@ def test_a_first_state_is_stored_and_brings_the_robot_online_with_a_step_and_a_f
     assert _reload(robot).online is True
     assert livestate.client().sismember(livestate.ONLINE_SET, robot.name)
     assert livestate.last_seen([robot.name])[robot.name] is not None
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
     assert _waiting_factsheet_requests(robot) == 1
 
 
@@ -83,18 +84,18 @@ def test_a_repeated_state_with_nothing_new_for_the_engine_requests_no_step(
     bridge: Bridge, robot: Robot
 ) -> None:
     bridge.handle([state_message(robot, header_id=1, at=0.0)])
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
     later = state_message(robot, header_id=2, at=1.0, pose=(4.0, 5.0, 1.0, "map"), velocity=(0.4, 0.0, 0.0))
 
     bridge.handle([later])
 
     assert livestate.latest_state(robot.name) == later[1]  # stored all the same: the pose is newer
-    assert not step_requested(robot)
+    assert not step_requested(bridge, robot)
 
 
 def test_a_state_with_changed_order_progress_requests_a_step(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([state_message(robot, header_id=1, order_id="m-n0-r0", node_states=[2, 4])])
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
 
     bridge.handle(
         [
@@ -104,7 +105,7 @@ def test_a_state_with_changed_order_progress_requests_a_step(bridge: Bridge, rob
         ]
     )
 
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
 
 
 @pytest.mark.parametrize(
@@ -120,11 +121,11 @@ def test_a_state_with_anything_else_the_engine_reads_requests_a_step(
     bridge: Bridge, robot: Robot, change: dict
 ) -> None:
     bridge.handle([state_message(robot, header_id=1, battery=80.0)])
-    step_requested(robot)
+    step_requested(bridge, robot)
 
     bridge.handle([state_message(robot, header_id=2, at=1.0, **{"battery": 80.0, **change})])
 
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
 
 
 @pytest.mark.parametrize(
@@ -138,12 +139,12 @@ def test_a_state_with_anything_else_the_engine_reads_requests_a_step(
 def test_a_stale_state_is_ignored(bridge: Bridge, robot: Robot, header_id: int, at: float) -> None:
     current = state_message(robot, header_id=5, at=0.0)
     bridge.handle([current])
-    step_requested(robot)
+    step_requested(bridge, robot)
 
     bridge.handle([state_message(robot, header_id=header_id, at=at, order_id="late-n0-r0", node_states=[2])])
 
     assert livestate.latest_state(robot.name) == current[1]
-    assert not step_requested(robot)
+    assert not step_requested(bridge, robot)
 
 
 def test_a_state_with_the_same_timestamp_and_a_higher_header_id_is_newer(
@@ -270,14 +271,14 @@ def test_a_flush_writes_only_the_robots_that_changed(
 def test_visualization_updates_the_pose_without_a_step(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([state_message(robot)])
     bridge.flush()
-    step_requested(robot)
+    step_requested(bridge, robot)
 
     bridge.handle([visualization_message(robot, 6.0, 7.0, -0.5, at=0.5)])
     bridge.flush()
 
     stored = _reload(robot)
     assert (stored.pose_x, stored.pose_y, stored.pose_theta) == (6.0, 7.0, -0.5)
-    assert not step_requested(robot)
+    assert not step_requested(bridge, robot)
 
 
 def test_a_visualization_before_any_state_keeps_the_last_state_time(bridge: Bridge, robot: Robot) -> None:
@@ -302,20 +303,20 @@ def test_a_lost_connection_marks_the_robot_offline_at_once_and_requests_a_step(
     bridge: Bridge, robot: Robot, connection_state: ConnectionState
 ) -> None:
     bridge.handle([state_message(robot)])
-    step_requested(robot)
+    step_requested(bridge, robot)
 
     bridge.handle([connection_message(robot, connection_state)])
 
     assert _reload(robot).online is False
     assert not livestate.client().sismember(livestate.ONLINE_SET, robot.name)
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
 
 
 def test_a_connection_online_message_changes_nothing(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([connection_message(robot, ConnectionState.ONLINE)])
 
     assert _reload(robot).online is False
-    assert not step_requested(robot)
+    assert not step_requested(bridge, robot)
 
 
 def test_a_robot_that_lost_its_connection_comes_back_with_its_next_state(
@@ -323,12 +324,12 @@ def test_a_robot_that_lost_its_connection_comes_back_with_its_next_state(
 ) -> None:
     bridge.handle([state_message(robot, header_id=1)])
     bridge.handle([connection_message(robot, ConnectionState.CONNECTIONBROKEN)])
-    step_requested(robot)
+    step_requested(bridge, robot)
 
     bridge.handle([state_message(robot, header_id=2, at=5.0)])
 
     assert _reload(robot).online is True
-    assert step_requested(robot)
+    assert step_requested(bridge, robot)
 
 
 def test_a_state_after_a_connection_loss_in_the_same_batch_leaves_the_robot_online(
@@ -425,11 +426,11 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
     livestate.mark_seen(pipe, [talking.name], now - 4.0)
     pipe.execute()
     for robot in (silent, talking, unheard):
-        step_requested(robot)
+        worker_step_requested(robot)
 
     offline = robot_check_heartbeats(now=now)
 
     assert sorted(offline) == sorted([silent.name, unheard.name])
     assert [_reload(r).online for r in (silent, talking, unheard)] == [False, True, False]
     assert not livestate.client().sismember(livestate.ONLINE_SET, silent.name)
-    assert [step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]
+    assert [worker_step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]

@@ -1,0 +1,101 @@
+"""The bridge's step threads (`workers.stepper.StepRunner`) against the real PostgreSQL, Redis and broker."""
+
+import threading
+import time
+from collections.abc import Callable
+
+import pytest
+from django.db import connection, transaction
+
+from missions.choices import MissionState
+from missions.models import Mission
+from missions.services import mission_create
+from robots.models import Robot
+from tests.bridge.messages import worker_step_requested
+from tests.bridge.test_robot_step import put_state
+from workers import livestate, metrics, stepper
+from workers.stepper import StepRunner
+
+MakeRobot = Callable[..., Robot]
+ROUTE = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
+
+
+def _orders_sent() -> int:
+    return int(livestate.client().hget(metrics.COUNTERS, f"{metrics.MESSAGES_OUT}|topic=order") or 0)
+
+
+def test_a_robot_requested_twice_before_its_step_runs_is_stepped_once(make_robot: MakeRobot) -> None:
+    robot = make_robot(prefix="runner")
+    runner = StepRunner(threads=1)
+
+    runner.request([robot.name])
+    runner.request([robot.name])
+
+    assert runner.queued() == {robot.name}
+    assert runner.run_next(timeout=0) == robot.name
+    assert runner.run_next(timeout=0) is None
+    assert runner.queued() == set()
+
+
+def test_a_step_starts_the_robots_mission_and_sends_its_order(make_robot: MakeRobot) -> None:
+    robot = make_robot(prefix="runner")
+    Robot.objects.filter(name=robot.name).update(online=True)
+    put_state(robot, header_id=1)
+    mission = mission_create(name=None, prefix="runner", spec={"robot": robot.name, "mission_tree": [ROUTE]})
+    sent_before = _orders_sent()
+    runner = StepRunner(threads=1)
+
+    runner.request([robot.name])
+    runner.run_next(timeout=0)
+
+    stored = Mission.objects.get(name=mission.name)
+    assert stored.state == MissionState.RUNNING
+    assert stored.order is not None and stored.order["nodes"][-1]["nodePosition"]["x"] == 5.0
+    assert _orders_sent() == sent_before + 1
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_request_while_the_robots_step_runs_queues_one_more(make_robot: MakeRobot) -> None:
+    robot = make_robot(prefix="runner")
+    runner = StepRunner(threads=1)
+    runner.request([robot.name])
+
+    def step_in_thread() -> None:
+        try:
+            runner.run_next(timeout=5)
+        finally:
+            connection.close()
+
+    with transaction.atomic():
+        Robot.objects.select_for_update().get(name=robot.name)  # the step waits for this row lock
+        worker = threading.Thread(target=step_in_thread)
+        worker.start()
+        deadline = time.monotonic() + 5
+        while runner.queued() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert runner.queued() == set()  # taken off the queue: the step has begun
+        runner.request([robot.name])
+        assert worker.is_alive()  # still waiting for the lock
+    worker.join(timeout=10)
+
+    assert not worker.is_alive()
+    assert runner.queued() == {robot.name}
+
+
+def test_a_failed_step_is_logged_and_handed_to_a_worker(
+    make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    robot = make_robot(prefix="runner")
+    worker_step_requested(robot)
+
+    def broken_step(*, name: str) -> None:
+        raise RuntimeError("database went away")
+
+    monkeypatch.setattr(stepper, "robot_step", broken_step)
+    runner = StepRunner(threads=1)
+    runner.request([robot.name])
+
+    assert runner.run_next(timeout=0) == robot.name
+
+    assert worker_step_requested(robot)
+    assert f"step of robot {robot.name} failed" in caplog.text
