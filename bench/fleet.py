@@ -66,6 +66,7 @@ class Options:
     state_hz: float = 1.0
     duration: float = 30.0
     warmup: float = 5.0
+    sample_every: float = 30.0
     mission_timeout: float = 3600.0
     robots_per_connection: int = 250
     http_concurrency: int = 8
@@ -272,21 +273,42 @@ class Bench:
             self.counts["start_timeouts"] = missing
 
     async def _measure(self) -> dict[str, Any]:
-        cpu = measure.CpuMeter(self.options.process_groups)
-        own = measure.OwnCpu()
-        logger.info("measuring for %.0f s", self.options.duration)
-        cpu.start()
-        own.start()
-        self.window.start = time.monotonic()
-        self.window.end = self.window.start + self.options.duration
+        """The window, cut into slices: CPU, memory, step latency and orders per slice, and over all."""
+        window = self.window
+        meter = measure.CpuMeter(self.options.process_groups)
+        ends = measure.slice_ends(self.options.duration, self.options.sample_every)
+        logger.info("measuring for %.0f s in %d slices", self.options.duration, len(ends))
+        first = previous = meter.snapshot()
+        window.start = time.monotonic()
+        window.end = window.start + self.options.duration
         before = self.counts.copy()
-        await asyncio.sleep(self.options.duration)
-        seconds = time.monotonic() - self.window.start
-        processes = cpu.stop(seconds)
-        processes[measure.GENERATOR] = own.stop(seconds)
-        self.window.end = min(self.window.end, time.monotonic())
+        previous_at, steps, orders = window.start, 0, 0
+        series = []
+        for end in ends:
+            await asyncio.sleep(max(0.0, window.start + end - time.monotonic()))
+            now = time.monotonic()
+            snapshot = meter.snapshot()
+            # Samples are appended in time order by this loop's callbacks, so counts split them by slice.
+            series.append(
+                measure.series_point(
+                    now - window.start,
+                    now - previous_at,
+                    window.step_latencies[steps:],
+                    window.orders_finished - orders,
+                    measure.usage(previous, snapshot, now - previous_at),
+                )
+            )
+            previous, previous_at = snapshot, now
+            steps, orders = len(window.step_latencies), window.orders_finished
+        seconds = previous_at - window.start
+        window.end = min(window.end, time.monotonic())
         states = self.counts["states_published"] - before["states_published"]
-        return {"seconds": seconds, "processes": processes, "states_published": states}
+        return {
+            "seconds": seconds,
+            "processes": measure.usage(first, previous, seconds),
+            "states_published": states,
+            "series": series,
+        }
 
     async def _failed_missions(self, since: datetime) -> dict[str, Any] | None:
         """The server's FAILED missions of this run (None if it cannot be asked)."""
@@ -537,6 +559,8 @@ class Bench:
             },
             "cpu": measured["processes"],
             "generator_tick_lag_ms": {"p99": lags["p99"], "max": lags["max"]},
+            "series": measured["series"],
+            "drift": measure.drift(measured["series"]),
         }
 
 
@@ -597,6 +621,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=float, default=defaults.duration, help="s of measurement window")
     parser.add_argument("--warmup", type=float, default=defaults.warmup, help="s before the window")
     parser.add_argument(
+        "--sample-every",
+        type=_positive,
+        default=defaults.sample_every,
+        help="s per slice of the window's time series (RSS, CPU, step latency, orders/s)",
+    )
+    parser.add_argument(
         "--mission-timeout", type=float, default=defaults.mission_timeout, help="s, per mission"
     )
     parser.add_argument("--robots-per-connection", type=int, default=defaults.robots_per_connection)
@@ -642,13 +672,22 @@ def options_from(args: argparse.Namespace, robots: int, sweep: bool = False) -> 
     return Options(**values, robots=robots, run_id=run_id, process_groups=groups)
 
 
+def _positive(text: str) -> float:
+    value = float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
 def write_result(result: dict[str, Any], output: Path) -> Path:
-    """``<output>/<mode>-n<N>-<run id>.json`` and the same name ``.md``; returns the JSON path."""
+    """``<output>/<stem>.json``, ``.md`` and ``-series.png`` (stem ``<mode>-n<N>-<run id>``); returns the
+    JSON path."""
     output.mkdir(parents=True, exist_ok=True)
-    stem = f"{result['mode']}-n{result['options']['robots']}-{result['run_id']}"
+    stem = report.run_stem(result)
     path = output / f"{stem}.json"
     path.write_text(json.dumps(result, indent=2) + "\n")
     (output / f"{stem}.md").write_text(report.run_markdown(result))
+    report.series_plot(result, output / f"{stem}-series.png")
     return path
 
 

@@ -9,6 +9,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 PAGE_SIZE = os.sysconf("SC_PAGE_SIZE")
@@ -77,41 +78,35 @@ def command_lines() -> dict[int, str]:
     return lines
 
 
+@dataclass(frozen=True)
+class Snapshot:
+    """Which processes each group had at one moment, and their counters then."""
+
+    members: dict[str, list[int]]
+    samples: dict[int, ProcessSample]
+
+
 class CpuMeter:
-    """CPU seconds and memory per process group between ``start`` and ``stop``.
+    """Snapshots of the process groups' CPU counters and memory, plus the generator's own process.
 
     Every process matching a group's pattern counts (several gunicorn or postgres processes add up), in
-    the first group that matches; the generator and its ancestors (a shell, ``timeout``) never count. A
-    process that starts during the window counts in full, one that ends is counted by its parent if
-    the parent reaped it (postgres backends, prefork workers).
+    the first group that matches; the generator and its ancestors (a shell, ``timeout``) never count in
+    a server group, the generator's own process (event loop and HTTP threads) is the group ``generator``.
     """
 
     def __init__(self, groups: Mapping[str, str]) -> None:
         self.groups = {name: re.compile(pattern) for name, pattern in groups.items()}
-        self._start: dict[int, ProcessSample] = {}
-        self._start_members: dict[str, list[int]] = {}
 
-    def start(self) -> None:
-        self._start_members = self._members()
-        self._start = self._sample(self._start_members)
-
-    def stop(self, seconds: float) -> dict[str, dict[str, float | int]]:
-        """Per group: cpu_seconds, cores (cpu_seconds / seconds), rss_mb at the end, processes."""
+    def snapshot(self) -> Snapshot:
         members = self._members()
-        end = self._sample(members)
-        report = {}
-        for group, pids in members.items():
-            cpu = 0.0
+        members[GENERATOR] = [os.getpid()]
+        samples = {}
+        for pids in members.values():
             for pid in pids:
-                before = self._start.get(pid)
-                cpu += end[pid].cpu_seconds - (before.cpu_seconds if before else 0.0) if pid in end else 0.0
-            # A member that ended was reaped by its parent, whose children's time now holds all of its
-            # CPU, including what it had used before the window.
-            for pid in set(self._start_members.get(group, ())) - set(end):
-                cpu -= self._start[pid].cpu_seconds if pid in self._start else 0.0
-            rss = sum(end[pid].rss_bytes for pid in pids if pid in end)
-            report[group] = _usage(cpu, seconds, rss, len(pids))
-        return report
+                sample = process_sample(pid)
+                if sample is not None:
+                    samples[pid] = sample
+        return Snapshot(members, samples)
 
     def _members(self) -> dict[str, list[int]]:
         members: dict[str, list[int]] = {group: [] for group in self.groups}
@@ -124,15 +119,33 @@ class CpuMeter:
                 members[group].append(pid)
         return members
 
-    @staticmethod
-    def _sample(members: Mapping[str, list[int]]) -> dict[int, ProcessSample]:
-        samples = {}
-        for pids in members.values():
-            for pid in pids:
-                sample = process_sample(pid)
-                if sample is not None:
-                    samples[pid] = sample
-        return samples
+
+def usage(before: Snapshot, after: Snapshot, seconds: float) -> dict[str, dict[str, float | int]]:
+    """Per group between two snapshots: cpu_seconds, cores (cpu_seconds / seconds), rss_mb at ``after``,
+    processes.
+
+    A process that started in between counts in full; one that ended is counted by its parent if the
+    parent reaped it (postgres backends, prefork workers), so what it had used before is taken off.
+    """
+    report = {}
+    for group, pids in after.members.items():
+        cpu = 0.0
+        for pid in pids:
+            if pid in after.samples:
+                earlier = before.samples.get(pid)
+                cpu += after.samples[pid].cpu_seconds - (earlier.cpu_seconds if earlier else 0.0)
+        # A member that ended was reaped by its parent, whose children's time now holds all of its CPU,
+        # including what it had used before.
+        for pid in set(before.members.get(group, ())) - set(after.samples):
+            cpu -= before.samples[pid].cpu_seconds if pid in before.samples else 0.0
+        rss = sum(after.samples[pid].rss_bytes for pid in pids if pid in after.samples)
+        report[group] = {
+            "cpu_seconds": round(cpu, 2),
+            "cores": round(cpu / seconds, 3) if seconds > 0 else 0.0,
+            "rss_mb": round(rss / 2**20, 1),
+            "processes": len(pids),
+        }
+    return report
 
 
 def _ancestors(pid: int) -> set[int]:
@@ -148,32 +161,65 @@ def _ancestors(pid: int) -> set[int]:
     return chain
 
 
-class OwnCpu:
-    """The generator's own CPU (all its threads) over a window."""
-
-    def __init__(self) -> None:
-        self._start = 0.0
-
-    def start(self) -> None:
-        self._start = _own().cpu_seconds
-
-    def stop(self, seconds: float) -> dict[str, float | int]:
-        own = _own()
-        return _usage(own.cpu_seconds - self._start, seconds, own.rss_bytes, 1)
+# --- over time: the window in slices, and how much the figures drift from the first to the last ---------
 
 
-def _own() -> ProcessSample:
-    sample = process_sample(os.getpid())
-    assert sample is not None
-    return sample
+def slice_ends(duration: float, every: float) -> list[float]:
+    """Seconds from the window's start at which its slices end: equal slices of about ``every`` s.
+
+    Equal rather than ``every`` s plus a remainder, so no short last slice makes the drift noisy.
+    """
+    count = max(1, round(duration / every))
+    return [duration * index / count for index in range(1, count + 1)]
 
 
-def _usage(cpu_seconds: float, seconds: float, rss_bytes: int, processes: int) -> dict[str, float | int]:
+def series_point(
+    t: float,
+    seconds: float,
+    step_latencies: Sequence[float],
+    orders: int,
+    processes: Mapping[str, Mapping[str, float | int]],
+) -> dict[str, Any]:
+    """One slice of the window: ``t`` s from the window's start to the slice's end, ``seconds`` long,
+    with the step latencies (s) and orders finished inside it and its ``usage`` per process group."""
+    steps = latency_summary(step_latencies)
     return {
-        "cpu_seconds": round(cpu_seconds, 2),
-        "cores": round(cpu_seconds / seconds, 3) if seconds > 0 else 0.0,
-        "rss_mb": round(rss_bytes / 2**20, 1),
-        "processes": processes,
+        "t": round(t, 1),
+        "seconds": round(seconds, 2),
+        "orders_per_s": round(orders / seconds, 1) if seconds > 0 else 0.0,
+        "steps": steps["count"],
+        "step_p50_ms": steps["p50"],
+        "step_p99_ms": steps["p99"],
+        "rss_mb": {group: figures["rss_mb"] for group, figures in processes.items()},
+        "cores": {group: figures["cores"] for group, figures in processes.items()},
+    }
+
+
+def trend(values: Sequence[float | None]) -> dict[str, float | None]:
+    """One figure over the slices: first, last, max, growth (last - first) and growth_pct (of first).
+
+    None marks a slice without the figure (no step finished in it); growth then needs both ends.
+    """
+    first, last = values[0], values[-1]
+    growth = round(last - first, 2) if first is not None and last is not None else None
+    return {
+        "first": first,
+        "last": last,
+        "max": max((value for value in values if value is not None), default=None),
+        "growth": growth,
+        "growth_pct": round(growth / first * 100, 1) if growth is not None and first else None,
+    }
+
+
+def drift(series: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """First slice against last (and the worst slice): is memory or latency creeping up over the run?"""
+    return {
+        "slices": len(series),
+        "rss_mb": {
+            group: trend([point["rss_mb"][group] for point in series]) for group in series[0]["rss_mb"]
+        },
+        "step_p50_ms": trend([point["step_p50_ms"] for point in series]),
+        "step_p99_ms": trend([point["step_p99_ms"] for point in series]),
     }
 
 

@@ -1,13 +1,15 @@
-"""Markdown tables and a plot from ``bench.fleet`` result files.
+"""Markdown tables and plots from ``bench.fleet`` result files.
 
 ``python -m bench.report bench/results/*.json --output bench --name latest`` writes ``latest.md`` (one row
-per run) and ``latest.png`` (step latency and throughput against fleet size).
+per run) and ``latest.png`` (step latency and throughput against fleet size). ``bench.fleet`` also writes
+each run's own Markdown and its time series plot with ``run_markdown`` and ``series_plot``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,8 +19,13 @@ SERVER_GROUPS = ("api", "bridge", "workers", "beat", "redis", "postgres", "broke
 GENERATOR = "generator"
 
 
+def run_stem(result: dict[str, Any]) -> str:
+    """A run's file names without extension: ``<mode>-n<N>-<run id>``."""
+    return f"{result['mode']}-n{result['options']['robots']}-{result['run_id']}"
+
+
 def run_markdown(result: dict[str, Any]) -> str:
-    """One run: its settings, its figures and CPU per process group."""
+    """One run: its settings, its figures, CPU per process group and the drift over the window."""
     options = result["options"]
     title = result["label"] or result["mode"]
     lines = [
@@ -61,7 +68,29 @@ def run_markdown(result: dict[str, Any]) -> str:
     lines.append(
         f"| server total | {_server_cpu(result, 'cpu_seconds')} | {_server_cpu(result, 'cores')} | | |"
     )
-    return "\n".join(lines) + "\n"
+    return "\n".join([*lines, "", *_drift_markdown(result)]) + "\n"
+
+
+def _drift_markdown(result: dict[str, Any]) -> list[str]:
+    """First slice against last, so "flat" can be checked at a glance; the slices are in the JSON."""
+    drift = result["drift"]
+    length = round(result["window_seconds"] / drift["slices"], 1)
+    lines = [
+        f"Over the window: {drift['slices']} slices of about {length} s "
+        f"(`--sample-every {result['options']['sample_every']:g}`), "
+        f"plotted in `{run_stem(result)}-series.png`.",
+        "",
+        "| drift | first slice | last slice | max slice | growth | growth % |",
+        "|---|---|---|---|---|---|",
+    ]
+    rows = {f"RSS MB {group}": trend for group, trend in drift["rss_mb"].items()}
+    if result["mode"] == "run":
+        rows |= {"step p50 ms": drift["step_p50_ms"], "step p99 ms": drift["step_p99_ms"]}
+    for name, trend in rows.items():
+        cells = [name, *(_value(trend[key]) for key in ("first", "last", "max"))]
+        cells += [_signed(trend["growth"]), _signed(trend["growth_pct"])]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
 
 
 def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
@@ -100,11 +129,7 @@ def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
 
 def plot(results: Sequence[dict[str, Any]], path: Path) -> None:
     """Step latency (p50, p99) and throughput against fleet size, one line per label and delay."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     runs = [result for result in results if result["mode"] == "run"]
     idle = [result for result in results if result["mode"] == "idle"]
     panels = 3 if idle else 2
@@ -144,6 +169,44 @@ def plot(results: Sequence[dict[str, Any]], path: Path) -> None:
         axis.set_xscale("log")
         axis.set_xticks(sizes, [str(size) for size in sizes])
         axis.minorticks_off()
+        axis.grid(True, alpha=0.3)
+        if axis.get_legend_handles_labels()[0]:
+            axis.legend(fontsize="small")
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+def series_plot(result: dict[str, Any], path: Path) -> None:
+    """One run over time: RSS growth per process group, and (missions only) step latency p50/p99 per slice."""
+    plt = _pyplot()
+    series = result["series"]
+    times = [point["t"] for point in series]
+    panels = 2 if result["mode"] == "run" else 1
+    figure, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.2), layout="constrained", squeeze=False)
+    memory = axes[0][0]
+    # Growth rather than RSS: groups differ by 100x (postgres counts its shared buffers once per backend),
+    # so on one absolute scale a leak of a small group would be a flat line.
+    for group, first in series[0]["rss_mb"].items():
+        values = [point["rss_mb"][group] for point in series]
+        if any(values):  # a group with no process (e.g. no beat) would only crowd the legend
+            memory.plot(
+                times,
+                [value - first for value in values],
+                marker=".",
+                linestyle="--" if group == GENERATOR else "-",
+                label=f"{group} ({first:g} MB)",
+            )
+    memory.set(title="Memory: RSS growth since the first slice", ylabel="MB")
+    if panels == 2:
+        latency = axes[0][1]
+        for key, name, marker in (("step_p50_ms", "p50", "o"), ("step_p99_ms", "p99", "^")):
+            latency.plot(times, [_nan(point[key]) for point in series], marker=marker, label=name)
+        latency.set(title="Step latency per slice", ylabel="ms", ylim=(0, None))
+    figure.suptitle(
+        f"{result['label'] or result['mode']}: {result['options']['robots']} robots, run {result['run_id']}"
+    )
+    for axis in axes[0]:
+        axis.set(xlabel="s into the window", xlim=(0, None))
         axis.grid(True, alpha=0.3)
         if axis.get_legend_handles_labels()[0]:
             axis.legend(fontsize="small")
@@ -198,6 +261,25 @@ def _latency(summary: dict[str, Any], *keys: str) -> str:
 
 def _value(value: Any) -> str:
     return "-" if value is None else str(value)
+
+
+def _signed(value: float | None) -> str:
+    return "-" if value is None else f"{value:+g}"
+
+
+def _nan(value: float | None) -> float:
+    """None (a slice without steps) as a gap in a line."""
+    return math.nan if value is None else value
+
+
+def _pyplot() -> Any:
+    """matplotlib's pyplot without a display; imported only when plotting (it is slow to import)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -123,6 +123,8 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
                 "10",
                 "--warmup",
                 "1",
+                "--sample-every",
+                "3",
                 "--run-id",
                 run_id,
                 "--output",
@@ -143,7 +145,9 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
         capture.close()
 
     result = json.loads((tmp_path / f"run-n5-{run_id}.json").read_text())
-    assert (tmp_path / f"run-n5-{run_id}.md").read_text().startswith("## run: 5 robots")
+    markdown = (tmp_path / f"run-n5-{run_id}.md").read_text()
+    assert markdown.startswith("## run: 5 robots")
+    assert "| step p99 ms |" in markdown
     missions = result["missions"]
     assert missions["completed"] > 0
     assert missions["failed"] == 0, missions["failure_reasons"]
@@ -154,6 +158,13 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
     assert result["step_latency_ms"]["count"] > 0
     assert result["throughput"]["orders_per_second"] > 0
     assert set(result["cpu"]) == {*DEFAULT_PROCESS_GROUPS, GENERATOR}
+    series = result["series"]  # 10 s in slices of about 3 s
+    assert len(series) == result["drift"]["slices"] == 3
+    assert series[-1]["t"] == pytest.approx(result["window_seconds"], abs=0.2)
+    assert sum(point["steps"] for point in series) == result["step_latency_ms"]["count"]
+    assert set(series[0]["rss_mb"]) == set(result["drift"]["rss_mb"]) == set(result["cpu"])
+    assert series[-1]["rss_mb"] == {group: usage["rss_mb"] for group, usage in result["cpu"].items()}
+    assert (tmp_path / f"run-n5-{run_id}-series.png").stat().st_size > 0
 
     states, orders = capture.of("state"), capture.of("order")
     assert len(states) > len(orders) >= missions["completed"] * 3
