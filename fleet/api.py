@@ -4,6 +4,8 @@ serializer building blocks every app's API shares, and the health endpoint."""
 import base64
 import uuid
 from collections.abc import Mapping
+from contextlib import suppress
+from functools import cache
 from typing import Any, TypeVar
 
 from django.core.exceptions import ValidationError as DjangoValidationError
@@ -199,6 +201,28 @@ class StrictSerializer(serializers.Serializer):
         if errors:
             raise ValidationError(errors)
         return value
+
+
+def body_validated(serializer_class: type[serializers.Serializer], data: Any) -> dict[str, Any]:
+    """`data` validated by `serializer_class`, or is_valid(raise_exception=True)'s ValidationError.
+
+    A new serializer deep-copies its whole tree of nested fields, which for a mission costs more than the
+    validation; so one instance per class serves every request, in every thread. That is safe because
+    run_validation() keeps no state on the serializer or its fields (DRF 3.18; is_valid() does, so it is not
+    used on the shared instance). Only the first validations build the nested fields (lazily, as DRF does);
+    threads racing there build equal ones.
+    """
+    with suppress(ValidationError):
+        return _shared_serializer(serializer_class).run_validation(data)
+    # Invalid (rare): a fresh serializer reports the errors in is_valid()'s exact words.
+    body = serializer_class(data=data)
+    body.is_valid(raise_exception=True)
+    return body.validated_data
+
+
+@cache
+def _shared_serializer(serializer_class: type[serializers.Serializer]) -> serializers.Serializer:
+    return serializer_class()
 
 
 class SpecSerializer(StrictSerializer):

@@ -13,7 +13,7 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request
+from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request, body_validated
 from missions.api.serializers import (
     NODE_KIND_SERIALIZERS,
     MissionCreateSerializer,
@@ -239,9 +239,7 @@ class MissionViewSet(viewsets.GenericViewSet):
         return Response(MissionSerializer(mission_list(filters=request.query_params), many=True).data)
 
     def create(self, request: Request) -> Response:
-        body = MissionCreateSerializer(data=request.data)
-        body.is_valid(raise_exception=True)
-        spec = dict(body.validated_data)
+        spec = body_validated(MissionCreateSerializer, request.data)
         mission = mission_create(name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec)
         return Response(MissionSerializer(mission).data)
 

@@ -400,3 +400,38 @@ def test_errors_in_several_nodes_are_all_reported(api):
         ["body", "mission_tree", 0, "move", "distance"],
         ["body", "mission_tree", 1, "extra"],
     ]
+
+
+@pytest.mark.parametrize(
+    ("raw", "error"),
+    [
+        ("null", {"loc": ["body"], "msg": "No data provided", "type": "null"}),
+        (
+            "[]",
+            {"loc": ["body"], "msg": "Invalid data. Expected a dictionary, but got list.", "type": "invalid"},
+        ),
+        (
+            '"go"',
+            {"loc": ["body"], "msg": "Invalid data. Expected a dictionary, but got str.", "type": "invalid"},
+        ),
+        (
+            '{"robot": "carter01", "mission_tree": [null]}',
+            {"loc": ["body", "mission_tree", 0], "msg": "This field may not be null.", "type": "null"},
+        ),
+    ],
+)
+def test_bodies_that_are_no_mission_get_drfs_exact_errors(api, raw, error):
+    response = api.post("/mission", raw, content_type="application/json")
+
+    assert response.status_code == 400
+    assert response.json() == {"detail": [error]}
+
+
+def test_an_invalid_body_leaves_nothing_behind_for_the_next_one(api):
+    """Every request is validated by the same serializer instance (fleet.api.body_validated)."""
+    api.post("/mission", mission({"move": {"distance": "x"}}, route(extra=1), name="bad"))
+
+    response = api.post("/mission", mission(route(name="go"), name="good"))
+
+    assert response.status_code == 200, response.json()
+    assert response.json()["mission_tree"][0]["route"] == {"waypoints": [waypoint(1, 2)]}

@@ -48,6 +48,49 @@ def test_create_stores_the_tree_normalized_and_every_node_pending(woken):
     assert woken == ["carter01"]
 
 
+@pytest.mark.parametrize(
+    ("earlier", "wakes"),
+    [
+        pytest.param(None, True, id="none"),
+        pytest.param({"robot": "carter02"}, True, id="other_robot"),
+        pytest.param({"robot": "carter02", "running": True}, True, id="other_robot_running"),
+        pytest.param({"completed": True}, True, id="completed"),
+        pytest.param({"failed": True}, True, id="failed"),
+        pytest.param({"canceled": True}, True, id="canceled"),
+        pytest.param({}, False, id="pending"),
+        pytest.param({"running": True}, False, id="running"),
+    ],
+)
+def test_create_wakes_the_robot_unless_queued_behind_an_unfinished_mission(woken, earlier, wakes):
+    if earlier is not None:
+        MissionFactory(name="earlier", **earlier)
+
+    mission_create(name="m1", prefix=None, spec=spec(route()))
+
+    assert woken == (["carter01"] if wakes else [])
+
+
+def test_a_mission_created_canceled_still_wakes_an_idle_robot(woken):
+    mission_create(name="m1", prefix=None, spec=spec(route(), needs_canceled=True))
+
+    assert woken == ["carter01"]
+
+
+def test_create_returns_the_stored_row(woken):
+    mission = mission_create(
+        name="m1",
+        prefix=None,
+        spec=spec(route(name="go"), timeout=60.0, update_nodes={"go": {"waypoints": [WAYPOINT]}}),
+    )
+
+    stored = Mission.objects.get(name="m1")
+    assert mission._state.adding is False
+    assert {field.name: getattr(mission, field.name) for field in Mission._meta.concrete_fields} == {
+        field.name: getattr(stored, field.name) for field in Mission._meta.concrete_fields
+    }
+    assert mission.created_at <= mission.updated_at
+
+
 def test_queue_positions_follow_creation_order():
     first = mission_create(name="a", prefix=None, spec=spec(route()))
     second = mission_create(name="b", prefix=None, spec=spec(route()))
@@ -72,12 +115,14 @@ def test_create_refuses_bad_trees_from_any_caller(fields, message_part):
 
 
 def test_a_duplicate_name_is_the_reference_error_and_wakes_nothing(django_capture_on_commit_callbacks):
-    MissionFactory(name="m1")
+    MissionFactory(name="m1", robot="carter09")
 
-    with django_capture_on_commit_callbacks() as callbacks, pytest.raises(ObjectError):
+    with django_capture_on_commit_callbacks() as callbacks, pytest.raises(ObjectError) as raised:
         mission_create(name="m1", prefix=None, spec=spec(route()))
 
+    assert raised.value.detail == "Object mission with name m1 already exists"
     assert callbacks == []
+    assert list(Mission.objects.values_list("name", "robot")) == [("m1", "carter09")]
 
 
 def test_cancel_reads_the_state_from_the_database_not_the_callers_copy():
