@@ -12,8 +12,10 @@ from datetime import datetime, timedelta
 from functools import cache
 from typing import Any
 
+import orjson
 from django.conf import settings
 from django.db import IntegrityError, connection, transaction
+from django.db.models import JSONField
 from django.utils import timezone
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
@@ -22,7 +24,7 @@ from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionSta
 from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from missions.models import Mission
 from robots.models import InstantAction, Robot
-from robots.selectors import robot_address, robot_unfinished_instant_actions
+from robots.selectors import robot_unfinished_instant_actions
 from vda5050.codec import parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
@@ -80,7 +82,10 @@ def _mission_insert(mission: Mission) -> bool:
     Queued behind others: the robot has an earlier unfinished mission, so the step that ends that one starts
     this one. (Should that step look for the next mission before this one commits, beat's sweep starts it.)
     """
-    values = _mission_db_values(mission, MISSION_INSERT_FIELDS, add=True)
+    # pre_save: what Model.save() writes, auto_now(_add) timestamps included (set on `mission` too).
+    values = _mission_db_values(
+        {name: MISSION_FIELDS[name].pre_save(mission, True) for name in MISSION_INSERT_FIELDS}
+    )
     with connection.cursor() as cursor:
         cursor.execute(MISSION_INSERT_SQL, values)
         mission.queue_position, queued_behind_others = cursor.fetchone()
@@ -212,13 +217,9 @@ MISSION_FIELDS = {field.name: field for field in Mission._meta.concrete_fields}
 MISSION_INSERT_FIELDS = tuple(name for name, field in MISSION_FIELDS.items() if not field.has_db_default())
 
 
-def _mission_db_values(mission: Mission, names: tuple[str, ...], *, add: bool) -> list[Any]:
-    """The values of fields `names` as Model.save() writes them: auto_now(_add) timestamps set (on
-    `mission` too), JSON adapted."""
-    return [
-        MISSION_FIELDS[name].get_db_prep_save(MISSION_FIELDS[name].pre_save(mission, add), connection)
-        for name in names
-    ]
+def _mission_db_values(values: Mapping[str, Any]) -> list[Any]:
+    """Field values (by field name) as the database takes them, JSON adapted, in order."""
+    return [MISSION_FIELDS[name].get_db_prep_save(value, connection) for name, value in values.items()]
 
 
 def _mission_columns(names: tuple[str, ...]) -> list[str]:
@@ -239,23 +240,31 @@ MISSION_INSERT_SQL = f"""
 
 # --- dispatch: stepping a robot ------------------------------------------------------------------------
 
-# The step's reads are the hot path of the whole system; as plain SQL they skip the ORM's query compiler,
-# which costs more than the queries themselves. Both lock what they read until the step commits.
+# The step's reads are the hot path of the whole system. As plain SQL with only the columns the step needs,
+# read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
+# more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
+# lock what they read until the step commits.
+_FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
 ROBOT_FOR_STEP_SQL = f"""
-    SELECT r.*, EXISTS (
-        SELECT 1 FROM {InstantAction._meta.db_table} a
-        WHERE a.robot_id = r.name
-          AND (a.status IS NULL OR a.status NOT IN ({", ".join(f"'{s}'" for s in sorted(dispatch.FINAL))}))
-    ) AS has_instant_actions
+    SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
+        r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
+        EXISTS (
+            SELECT 1 FROM {InstantAction._meta.db_table} a
+            WHERE a.robot_id = r.name
+              AND (a.status IS NULL OR a.status NOT IN ({_FINAL_ACTION_STATUSES_SQL}))
+        )
     FROM {Robot._meta.db_table} r WHERE r.name = %s FOR UPDATE OF r
 """
+MISSION_RECORD_FIELDS = tuple(f.name for f in fields(dispatch.MissionRecord))
+# Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
+MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
 CURRENT_MISSIONS_SQL = f"""
-    SELECT * FROM {Mission._meta.db_table}
+    SELECT {", ".join(_mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
     WHERE robot = %s AND state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
     ORDER BY state <> '{MissionState.RUNNING}', queue_position LIMIT %s FOR UPDATE
 """
-
-STEP_STATUS_FIELDS = [
+# The fields a step writes; the record's others are the mission's spec.
+STEP_STATUS_FIELDS = (
     "state",
     "current_node",
     "node_status",
@@ -269,8 +278,7 @@ STEP_STATUS_FIELDS = [
     "order_sent_at",
     "order_accepted",
     "attempts",
-    "updated_at",
-]
+)
 
 
 @dataclass
@@ -281,7 +289,7 @@ class StepOutcome:
     instant_actions_key: str = "actions"
     messages: list[dispatch.Outgoing] = field(default_factory=list)
     notifies: list[tuple[str, str]] = field(default_factory=list)
-    finished: list[Mission] = field(default_factory=list)
+    finished: list[dispatch.MissionRecord] = field(default_factory=list)
     rejections: int = 0
 
 
@@ -294,41 +302,43 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
     now = now or timezone.now()
     outcome = StepOutcome()
     with transaction.atomic():
-        robot = next(iter(Robot.objects.raw(ROBOT_FOR_STEP_SQL, [name])), None)
-        if robot is None:
+        with connection.cursor() as cursor:
+            cursor.execute(ROBOT_FOR_STEP_SQL, [name])
+            row = cursor.fetchone()
+        if row is None:
             return outcome
-        outcome.address = robot_address(robot)
-        outcome.instant_actions_key = robot.instant_actions_key
+        lifecycle, robot_state, online, critical_level, switch_teleop, actions_key, *address, has_actions = (
+            row
+        )
+        outcome.address = RobotAddress(*address)
+        outcome.instant_actions_key = actions_key
         state = _live_state(name)
         actions = (
-            [_action_record(a) for a in robot_unfinished_instant_actions(robot=robot)]
-            if robot.has_instant_actions
-            else []
+            [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
         )
         view = dispatch.RobotView(
-            name=robot.name,
-            lifecycle=robot.lifecycle,
-            state=robot.state,
-            online=robot.online,
-            battery_critical_level=robot.battery_critical_level,
-            switch_teleop=robot.switch_teleop,
+            name=name,
+            lifecycle=lifecycle,
+            state=robot_state,
+            online=online,
+            battery_critical_level=critical_level,
+            switch_teleop=switch_teleop,
         )
-        upcoming: list[Mission] = []
+        upcoming: list[dispatch.MissionRecord] = []
         while True:
             # The running mission and the next queued one come in one query: a step that ends a mission
             # usually starts the next.
             upcoming = upcoming or _current_missions(name, count=2)
             mission = upcoming.pop(0) if upcoming else None
-            record = _mission_record(mission) if mission is not None else None
             result = dispatch.step(
                 now=now,
                 robot=view,
                 state=state,
-                mission=record,
+                mission=mission,
                 actions=actions,
                 settings=dispatch_settings(),
             )
-            _store_actions(robot, actions, result.actions)
+            _store_actions(name, actions, result.actions)
             actions = [a for a in result.actions if a.status not in dispatch.FINAL]
             outcome.messages.extend(result.messages)
             outcome.rejections += int(result.rejected)
@@ -338,24 +348,34 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
                 if result.notify is not None:
                     outcome.notifies.append((mission.name, result.notify))
                 if result.mission.done:
-                    outcome.finished.append(mission)
+                    outcome.finished.append(result.mission)
                 if result.delete_mission:
-                    mission.delete()
+                    Mission.objects.filter(name=mission.name).delete()
             if result.delete_robot:
-                robot.delete()
+                Robot.objects.filter(name=name).delete()
                 transaction.on_commit(lambda: livestate.forget(name))
                 return outcome
             if mission is None or not (result.mission.done or result.delete_mission):
                 break
-        if robot.state != view.state:
-            robot.state = view.state
-            robot.save(update_fields=["state", "updated_at"])
+        if view.state != robot_state:
+            Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
     return outcome
 
 
-def _current_missions(robot: str, *, count: int) -> list[Mission]:
+def _current_missions(robot: str, *, count: int) -> list[dispatch.MissionRecord]:
     """The robot's RUNNING mission, then its queue in FIFO order, locked."""
-    return list(Mission.objects.raw(CURRENT_MISSIONS_SQL, [robot, count]))
+    with connection.cursor() as cursor:
+        cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
+        rows = cursor.fetchall()
+    return [
+        dispatch.MissionRecord(
+            *(
+                orjson.loads(value) if is_json and value is not None else value
+                for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
+            )
+        )
+        for row in rows
+    ]
 
 
 def dispatch_settings() -> dispatch.DispatchSettings:
@@ -377,23 +397,18 @@ def _live_state(name: str) -> State | None:
         return None
 
 
-def _mission_record(mission: Mission) -> dispatch.MissionRecord:
-    return dispatch.MissionRecord(
-        **{f.name: getattr(mission, f.name) for f in fields(dispatch.MissionRecord)}
-    )
-
-
-def _store_mission(mission: Mission, record: dispatch.MissionRecord) -> None:
-    """Write the fields the step changed, in one UPDATE (plain SQL, like the step's reads)."""
-    changed = [f for f in STEP_STATUS_FIELDS[:-1] if getattr(mission, f) != getattr(record, f)]
+def _store_mission(before: dispatch.MissionRecord, after: dispatch.MissionRecord) -> None:
+    """Write the fields the step changed, in one UPDATE."""
+    changed = {
+        name: getattr(after, name)
+        for name in STEP_STATUS_FIELDS
+        if getattr(before, name) != getattr(after, name)
+    }
     if not changed:
         return
-    for name in changed:
-        setattr(mission, name, getattr(record, name))
-    columns = (*changed, "updated_at")
-    values = _mission_db_values(mission, columns, add=False)
+    values = {**changed, "updated_at": timezone.now()}
     with connection.cursor() as cursor:
-        cursor.execute(_mission_update_sql(columns), [*values, mission.name])
+        cursor.execute(_mission_update_sql(tuple(values)), [*_mission_db_values(values), after.name])
 
 
 @cache
@@ -407,7 +422,7 @@ def _action_record(action: InstantAction) -> dispatch.ActionRecord:
 
 
 def _store_actions(
-    robot: Robot, before: list[dispatch.ActionRecord], after: list[dispatch.ActionRecord]
+    robot: str, before: list[dispatch.ActionRecord], after: list[dispatch.ActionRecord]
 ) -> None:
     """Insert new instant actions and save the ones whose status or send time changed."""
     known = {a.action_id: a for a in before}
@@ -418,7 +433,7 @@ def _store_actions(
         [
             InstantAction(
                 action_id=a.action_id,
-                robot=robot,
+                robot_id=robot,
                 action_type=a.action_type,
                 mission=a.mission,
                 status=a.status,

@@ -9,7 +9,6 @@ from fleet.api import QueryValidationError, object_get
 from robots.filters import RobotFilter
 from robots.models import InstantAction, Robot
 from vda5050.state import FINAL_ACTION_STATUSES
-from vda5050.topics import RobotAddress
 
 
 def robot_get(*, name: str, to_change: bool = False) -> Robot:
@@ -25,17 +24,7 @@ def robot_list(*, filters: Mapping[str, Any] | None = None) -> QuerySet[Robot]:
     return filterset.qs
 
 
-def robot_address(robot: Robot) -> RobotAddress:
-    """Where the robot's VDA 5050 topics live, and the protocol version it speaks."""
-    return RobotAddress(
-        interface_name=robot.interface_name,
-        manufacturer=robot.manufacturer,
-        serial_number=robot.serial_number,
-        version=robot.protocol_version,
-    )
-
-
-def robot_unfinished_instant_actions(*, robot: Robot | OuterRef) -> QuerySet[InstantAction]:
+def robot_unfinished_instant_actions(*, robot: Robot | str | OuterRef) -> QuerySet[InstantAction]:
     """Instant actions the robot has not yet reported FINISHED or FAILED, oldest first."""
     return (
         InstantAction.objects.filter(robot=robot)
