@@ -1,7 +1,14 @@
 """`make bench`: start a Mission Dispatch stack of its own, run the benchmark runs, write the report.
 
 The stack uses its own database (`mission_dispatch_bench`), Redis database and API port, so it never
-mixes with `make run`; its processes are those of `deploy/Procfile` (no simulator).
+mixes with `make run`; its processes are those of `deploy/Procfile` (no simulator), with `--bridges`
+bridges (sharing the robots' messages through an MQTT shared subscription) and `--workers` step-worker
+processes. What a second bridge and worker bring on a machine with more cores: the `scale` suite once per
+layout into one directory, whose `latest.md` then compares them (runs are labelled by layout;
+`mission-dispatch` alone is the Procfile's, one bridge and one worker).
+
+    .venv/bin/python -m bench.suite --suite scale --bridges 1 --workers 1 --output bench/results/scale
+    .venv/bin/python -m bench.suite --suite scale --bridges 2 --workers 2 --output bench/results/scale
 """
 
 from __future__ import annotations
@@ -12,74 +19,25 @@ import subprocess
 import sys
 import time
 import urllib.request
+import uuid
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
+import redis
+
 from bench import fleet, report
 
 ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "bench" / "results"  # make bench's results; their report is bench/latest.md
 VENV_BIN = Path(sys.executable).parent
+CELERY = str(VENV_BIN / "celery")
 API_PORT = 5100
 STACK_ENV = {
     "FLEET_DB_NAME": "mission_dispatch_bench",
     "FLEET_REDIS_URL": "redis://127.0.0.1:6379/3",
     "FLEET_API_PORT": str(API_PORT),
     "FLEET_LOG_LEVEL": "WARNING",
-}
-PROCESSES = {
-    "api": [
-        str(VENV_BIN / "gunicorn"),
-        "fleet.wsgi",
-        "--bind",
-        f"127.0.0.1:{API_PORT}",
-        "--workers",
-        "2",
-        "--threads",
-        "4",
-        "--no-control-socket",
-    ],
-    "bridge": [sys.executable, "manage.py", "mqtt_bridge"],
-    "worker": [
-        str(VENV_BIN / "celery"),
-        "-A",
-        "fleet",
-        "worker",
-        "-Q",
-        "steps",
-        "--pool",
-        "threads",
-        "--concurrency",
-        "4",
-        "--without-gossip",
-        "--without-mingle",
-        "-n",
-        "bench-steps@%h",
-    ],
-    "notify": [
-        str(VENV_BIN / "celery"),
-        "-A",
-        "fleet",
-        "worker",
-        "-Q",
-        "notify",
-        "--pool",
-        "threads",
-        "--concurrency",
-        "4",
-        "--without-gossip",
-        "--without-mingle",
-        "-n",
-        "bench-notify@%h",
-    ],
-    "beat": [
-        str(VENV_BIN / "celery"),
-        "-A",
-        "fleet",
-        "beat",
-        "--schedule",
-        "/tmp/mission-dispatch-bench-beat",
-    ],
 }
 # name -> bench.fleet arguments; "quick" is what CI can afford, "full" what bench/README.md reports.
 # As in the issue's comparison with the reference: one route node per mission, queue depth 2, 1 Hz state.
@@ -90,6 +48,7 @@ SUITES = {
         "idle-n2000": ["--mode", "idle", "--robots", "2000", "--duration", "60", "--warmup", "60"],
         "saturation-n100": ["--nodes", "1", "--robots", "100", "--duration", "60", "--warmup", "10"],
         "saturation-n500": ["--nodes", "1", "--robots", "500", "--duration", "60", "--warmup", "20"],
+        # 30 minutes in 1-minute slices: latency flat over any 5 minutes, and memory flat over 30.
         "realistic-n1000": [
             "--nodes",
             "1",
@@ -98,9 +57,11 @@ SUITES = {
             "--delay",
             "5",
             "--duration",
-            "300",
+            "1800",
             "--warmup",
             "30",
+            "--sample-every",
+            "60",
         ],
         "realistic-n2000": [
             "--nodes",
@@ -117,10 +78,89 @@ SUITES = {
     },
 }
 SUITES["idle"] = {"idle-n2000": SUITES["full"]["idle-n2000"]}
+# The saturation runs alone, to compare layouts (--bridges, --workers).
+SUITES["scale"] = {label: SUITES["full"][label] for label in ("saturation-n100", "saturation-n500")}
+
+
+def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
+    """Name -> command line of the stack's processes: `deploy/Procfile`'s, with `bridges` bridges and
+    `workers` step workers. Several bridges join a shared-subscription group unique to this stack, so
+    another stack on the same broker never takes their messages."""
+    share = ["--share-group", f"bench-{uuid.uuid4().hex[:8]}"] if bridges > 1 else []
+    return {
+        "api": [
+            str(VENV_BIN / "gunicorn"),
+            "fleet.wsgi",
+            "--bind",
+            f"127.0.0.1:{API_PORT}",
+            "--workers",
+            "2",
+            "--threads",
+            "4",
+            "--no-control-socket",
+        ],
+        **{
+            _numbered("bridge", i, bridges): [sys.executable, "manage.py", "mqtt_bridge", *share]
+            for i in range(bridges)
+        },
+        **{
+            _numbered("worker", i, workers): _worker("steps", f"bench-{_numbered('steps', i, workers)}")
+            for i in range(workers)
+        },
+        "notify": _worker("notify", "bench-notify"),
+        "beat": [CELERY, "-A", "fleet", "beat", "--schedule", "/tmp/mission-dispatch-bench-beat"],
+    }
+
+
+def _numbered(name: str, index: int, count: int) -> str:
+    """`name` for a single process (as in `deploy/Procfile`), `name-1`, `name-2`, ... for several."""
+    return name if count == 1 else f"{name}-{index + 1}"
+
+
+def _worker(queue: str, node: str) -> list[str]:
+    """A Celery worker of `queue` on 4 threads, named `node` on this host."""
+    return [
+        CELERY,
+        "-A",
+        "fleet",
+        "worker",
+        "-Q",
+        queue,
+        "--pool",
+        "threads",
+        "--concurrency",
+        "4",
+        "--without-gossip",
+        "--without-mingle",
+        "-n",
+        f"{node}@%h",
+    ]
 
 
 @contextmanager
-def stack(logs: Path) -> Iterator[None]:
+def autovacuum() -> Iterator[None]:
+    """PostgreSQL's autovacuum on while the stack runs, as in any production database (it is the default;
+    a CI machine's server may have it off). Without it the churning missions table measures its own bloat.
+    """
+    if _psql("SHOW autovacuum") == "on":
+        yield
+        return
+    _psql("ALTER SYSTEM SET autovacuum = on")
+    _psql("SELECT pg_reload_conf()")
+    try:
+        yield
+    finally:
+        _psql("ALTER SYSTEM RESET autovacuum")  # back to what the server's configuration files say
+        _psql("SELECT pg_reload_conf()")
+
+
+def _psql(command: str) -> str:
+    argv = ["psql", "-h", "127.0.0.1", "-U", "postgres", "-d", "postgres", "-Atc", command]
+    return subprocess.run(argv, check=True, capture_output=True, text=True).stdout.strip()
+
+
+@contextmanager
+def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[None]:
     env = {**os.environ, **STACK_ENV}
     # Every suite starts from an empty database: missions of earlier runs would slow the sweeps down.
     subprocess.run(
@@ -128,21 +168,25 @@ def stack(logs: Path) -> Iterator[None]:
     )
     subprocess.run([sys.executable, "deploy/ensure_database.py"], cwd=ROOT, env=env, check=True)
     subprocess.run([sys.executable, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env, check=True)
-    subprocess.run(["redis-cli", "-n", "3", "flushdb"], check=True, capture_output=True)
+    redis.Redis.from_url(STACK_ENV["FLEET_REDIS_URL"]).flushdb()
     logs.mkdir(parents=True, exist_ok=True)
-    running = [
-        subprocess.Popen(
+    running = {
+        name: subprocess.Popen(
             argv, cwd=ROOT, env=env, stdout=(logs / f"{name}.log").open("wb"), stderr=subprocess.STDOUT
         )
-        for name, argv in PROCESSES.items()
-    ]
+        for name, argv in processes(bridges, workers).items()
+    }
     try:
         _wait_for_api()
         yield
+        # Figures measured with a server process gone (a crashed bridge, say) describe another layout.
+        exited = [name for name, process in running.items() if process.poll() is not None]
+        if exited:
+            raise RuntimeError(f"server processes exited during the runs: {exited}; see their logs in {logs}")
     finally:
-        for process in running:
+        for process in running.values():
             process.terminate()
-        for process in running:
+        for process in running.values():
             process.wait(timeout=60)
 
 
@@ -158,26 +202,42 @@ def _wait_for_api(timeout: float = 60) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--suite", choices=sorted(SUITES), default="full")
-    parser.add_argument("--output", type=Path, default=ROOT / "bench" / "results")
+    parser.add_argument(
+        "--output",
+        type=Path,
+        default=RESULTS,
+        help="directory for the runs' results and, unless it is the default, their latest.md and .png",
+    )
+    parser.add_argument("--bridges", type=int, default=1, help="bridge processes (one shared subscription)")
+    parser.add_argument("--workers", type=int, default=1, help="step-worker processes (4 threads each)")
     args = parser.parse_args(argv)
-    with stack(args.output / "logs"):
-        for label, run in SUITES[args.suite].items():
-            print(f"--- {label}", flush=True)
+    if args.bridges < 1 or args.workers < 1:
+        parser.error("--bridges and --workers must be at least 1")
+    # Runs are labelled by layout, so one report can compare layouts; the Procfile's keeps the old label.
+    label = "mission-dispatch"
+    if (args.bridges, args.workers) != (1, 1):
+        label += f" ({args.bridges} bridges, {args.workers} workers)"
+    with autovacuum(), stack(args.output / "logs", bridges=args.bridges, workers=args.workers):
+        for name, run in SUITES[args.suite].items():
+            print(f"--- {name}", flush=True)
             fleet.main(
                 [
                     "--base-url",
                     f"http://127.0.0.1:{API_PORT}",
                     "--label",
-                    "mission-dispatch",
+                    label,
                     "--output",
                     str(args.output),
                     *run,
                 ]
             )
     results = sorted(str(path) for path in args.output.glob("*.json"))
-    return report.main([*results, "--output", str(ROOT / "bench"), "--name", "latest"])
+    report_dir = ROOT / "bench" if args.output.resolve() == RESULTS else args.output
+    return report.main([*results, "--output", str(report_dir), "--name", "latest"])
 
 
 if __name__ == "__main__":

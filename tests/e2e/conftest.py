@@ -44,6 +44,23 @@ SERVER_ENV = {
     "FLEET_VISIBILITY_TIMEOUT": "5",
     "FLEET_LOG_LEVEL": "INFO",
 }
+# Command lines of the scalable server processes; a test may start more of them (test_scale_out.py).
+BRIDGE = [PYTHON, "manage.py", "mqtt_bridge"]
+WORKER = [
+    CELERY,
+    "-A",
+    "fleet",
+    "worker",
+    "-Q",
+    "steps,notify",
+    "--pool",
+    "threads",
+    "--concurrency",
+    "4",
+    "--without-heartbeat",
+    "--without-gossip",
+    "--without-mingle",
+]
 
 
 def _flush_retrying_on_deadlock(self: TransactionTestCase) -> None:
@@ -93,8 +110,11 @@ class Process:
                 start_new_session=True,
             )
 
+    def running(self) -> bool:
+        return self.popen is not None and self.popen.poll() is None
+
     def send(self, sig: int) -> None:
-        if self.popen is not None and self.popen.poll() is None:
+        if self.running():
             os.killpg(self.popen.pid, sig)
 
     def kill(self, sig: int = signal.SIGKILL) -> None:
@@ -114,6 +134,10 @@ class Process:
     def restart(self) -> None:
         self.kill()
         self.start()
+
+    def output(self) -> str:
+        """Everything the process has logged so far."""
+        return self.log.read_text(errors="replace")
 
 
 @dataclass
@@ -182,18 +206,8 @@ def start_servers(logs: Path) -> Stack:
         "PYTHONUNBUFFERED": "1",
     }
     stack = Stack(env=env, logs=logs)
-    worker = [
-        "worker",
-        "-Q",
-        "steps,notify",
-        "--pool",
-        "threads",
-        "--concurrency",
-        "4",
-        "--without-heartbeat",
-    ]
-    stack.add("bridge", [PYTHON, "manage.py", "mqtt_bridge"])
-    stack.add("worker", [CELERY, "-A", "fleet", *worker, "--without-gossip", "--without-mingle"])
+    stack.add("bridge", BRIDGE)
+    stack.add("worker", WORKER)
     stack.add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(logs / "beat-schedule")])
     return stack
 
