@@ -14,12 +14,13 @@ import queue
 import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from operator import itemgetter
 from typing import Any
 
 import orjson
 import paho.mqtt.client as mqtt
 from django.conf import settings
-from django.db import close_old_connections, connection
+from django.db import DatabaseError, close_old_connections, connection
 from psycopg.types.json import Jsonb
 
 from missions.dispatch import engine_digest
@@ -296,10 +297,27 @@ class Bridge:
                 values.append(status.last_state_at)
             groups.setdefault(columns, []).append((*values, name))
         self._last_flush = now
-        with connection.cursor() as cursor:
-            for columns, rows in groups.items():
-                assignments = ", ".join(f"{column} = %s" for column in columns)
-                cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", rows)
+        for columns, rows in groups.items():
+            # Every bridge locks the robots' rows in name order, so two bridges' flushes never deadlock.
+            rows.sort(key=itemgetter(-1))
+            try:
+                _write_status(columns, rows)
+            except DatabaseError:
+                # One robot's value the database refuses (a NUL in an error text, say) must not hold back
+                # the others': row by row, dropping what fails (rewritten once it changes).
+                logger.warning("status flush of %d robots failed; writing them one by one", len(rows))
+                for row in rows:
+                    try:
+                        _write_status(columns, [row])
+                    except DatabaseError:
+                        logger.exception("status of robot %s not written", row[-1])
+                        metrics.count(metrics.STATUS_WRITES_FAILED)
+
+
+def _write_status(columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> None:
+    assignments = ", ".join(f"{column} = %s" for column in columns)
+    with connection.cursor() as cursor:
+        cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", rows)
 
 
 def _timestamp_ms(timestamp: str) -> int:

@@ -34,6 +34,7 @@ MESSAGES_INVALID = "messages_invalid"  # labels: topic
 MESSAGES_OUT = "messages_out"  # labels: topic
 ORDER_REJECTIONS = "order_rejections"
 MISSIONS_FINISHED = "missions_finished"  # labels: state, failure_category
+STATUS_WRITES_FAILED = "status_writes_failed"  # robot status the database refused (bridge flush)
 
 
 def _field(name: str, labels: dict[str, str]) -> str:

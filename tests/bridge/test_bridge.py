@@ -211,6 +211,23 @@ def test_pose_and_battery_reach_the_database_only_on_flush(bridge: Bridge, robot
     }
 
 
+@pytest.mark.django_db(transaction=True)  # autocommit, as the bridge runs: a refused row aborts no batch
+def test_a_status_the_database_refuses_is_dropped_and_the_other_robots_are_written(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    refused, healthy = make_robot(), make_robot()
+    bridge.directory.reload()
+    failed_before = _counter(metrics.STATUS_WRITES_FAILED)
+    nul = error("blocked", ErrorLevel.WARNING, description="stuck\x00here")  # jsonb cannot hold NUL
+    bridge.handle([state_message(refused, errors=[nul]), state_message(healthy, pose=(4.0, 5.0, 1.0, "map"))])
+
+    bridge.flush()
+
+    assert _reload(healthy).pose_x == 4.0
+    assert _reload(refused).errors == {}
+    assert _counter(metrics.STATUS_WRITES_FAILED) == failed_before + 1
+
+
 def test_user_info_becomes_the_robots_info_messages(bridge: Bridge, robot: Robot) -> None:
     topic_name, payload = state_message(robot)
     message = orjson.loads(payload)
