@@ -43,6 +43,7 @@ SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUA
 BATCH_LIMIT = 2000  # messages handled per pipeline round trip
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
+FAILURE_PAUSE_SECONDS = 1.0  # after an iteration failed (database or Redis unreachable)
 STATUS_COLUMNS = (
     "battery_level",
     "pose_x",
@@ -135,7 +136,11 @@ class Bridge:
         self.client.loop_start()
         try:
             while True:
-                self.run_once(timeout=settings.BRIDGE_STATUS_FLUSH_SECONDS)
+                try:
+                    self.run_once(timeout=settings.BRIDGE_STATUS_FLUSH_SECONDS)
+                except Exception:  # PostgreSQL or Redis away for a moment: the bridge waits, never exits
+                    logger.exception("bridge iteration failed; going on in %s s", FAILURE_PAUSE_SECONDS)
+                    time.sleep(FAILURE_PAUSE_SECONDS)
         finally:
             self.client.loop_stop()
 
@@ -204,7 +209,7 @@ class Bridge:
                         disconnected.add(name)
                 elif kind == Topic.FACTSHEET:
                     self._store_factsheet(name, payload)
-            except ProtocolError as exc:
+            except (ProtocolError, DatabaseError) as exc:  # DatabaseError: a factsheet PostgreSQL refuses
                 metrics.count(metrics.MESSAGES_INVALID, pipe=side, topic=topic.rsplit("/", 1)[-1][:32])
                 logger.warning("dropped malformed message on %s: %s", topic, exc)
         if seen:
@@ -227,7 +232,11 @@ class Bridge:
         self, changed: set[str], came_online: list[str], disconnected: set[str], *, received_at: float
     ) -> None:
         if came_online:
-            Robot.objects.filter(name__in=came_online).update(online=True)
+            try:
+                Robot.objects.filter(name__in=came_online).update(online=True)
+            except DatabaseError:
+                livestate.client().srem(livestate.ONLINE_SET, *came_online)  # their next state tries again
+                raise
             for name in came_online:
                 if settings.DISPATCH_REQUEST_FACTSHEET:
                     robot_request_factsheet(name=name)

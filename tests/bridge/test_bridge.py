@@ -392,6 +392,25 @@ def test_a_factsheet_is_stored_whole_with_class_and_top_speed(
     assert (stored.agv_class, stored.speed_max) == (stored_class, 2.25)
 
 
+@pytest.mark.django_db(transaction=True)  # autocommit, as the bridge runs
+def test_a_factsheet_the_database_refuses_is_counted_and_the_rest_of_the_batch_is_handled(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    robot = make_robot()
+    bridge.directory.reload()
+    factsheet = full_factsheet()
+    factsheet.type_specification.series_description = "carter\x00"  # jsonb cannot hold NUL
+    invalid_before = _counter(metrics.MESSAGES_INVALID, topic="factsheet")
+    state = state_message(robot)
+
+    bridge.handle([factsheet_message(robot, factsheet), state])
+
+    assert _counter(metrics.MESSAGES_INVALID, topic="factsheet") == invalid_before + 1
+    assert _reload(robot).factsheet is None
+    assert livestate.latest_state(robot.name) == state[1]
+    assert _reload(robot).online is True
+
+
 # --- malformed messages ----------------------------------------------------------------------------------
 
 
