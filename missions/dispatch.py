@@ -660,20 +660,41 @@ def _end(
         result.delete_mission = True
 
 
-def engine_digest(state: State) -> str:
-    """A fingerprint of what steps depend on; the bridge wakes a step only when it changes.
+@dataclass(frozen=True)
+class StateDigest:
+    """What steps read in a robot's state, for the bridge to tell which states need a step.
 
-    Pose and other high-rate fields are left out on purpose: a moving robot must not cost a step per
-    state message. Battery counts in whole percent (it gates queued missions at the critical level).
+    `full` changes with anything a step reads. `events` with what needs a step whatever order the robot
+    holds: finished actions, errors, operating mode, charging, battery in whole percent, pause. Pose and
+    other high-rate fields are left out of both on purpose: a moving robot must not cost a step per state
+    message. Battery counts in whole percent because it gates queued missions at the critical level.
     """
-    parts = [
+
+    full: str
+    events: str
+    order_id: str
+    order_update_id: int
+    busy: bool  # nodes, edges or actions of an order left to do (not vda5050.state.is_idle)
+
+
+def state_digest(state: State) -> StateDigest:
+    progress = [
         state.order_id,
         str(state.order_update_id),
         state.last_node_id,
         str(state.last_node_sequence_id),
         ",".join(str(node.sequence_id) for node in state.node_states),
         str(len(state.edge_states)),
-        ",".join(f"{a.action_id}={a.action_status.value}" for a in state.action_states),
+        ",".join(
+            f"{a.action_id}={a.action_status.value}"
+            for a in state.action_states
+            if a.action_status not in FINAL
+        ),
+    ]
+    events = [
+        ",".join(
+            f"{a.action_id}={a.action_status.value}" for a in state.action_states if a.action_status in FINAL
+        ),
         ",".join(
             f"{e.error_type}/{e.error_level.value}/"
             + "+".join(f"{r.reference_key}:{r.reference_value}" for r in e.error_references or ())
@@ -684,4 +705,25 @@ def engine_digest(state: State) -> str:
         str(int(state.battery_state.battery_charge)),
         str(state.paused),
     ]
-    return "|".join(parts)
+    return StateDigest(
+        full="|".join(progress + events),
+        events="|".join(events),
+        order_id=state.order_id,
+        order_update_id=state.order_update_id,
+        busy=not vda_state.is_idle(state),
+    )
+
+
+def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
+    """The robot took a new order, or a newer update of the order it runs, and nothing else a step reads
+    changed: the step that sent the order did all there is to do, so this state needs none.
+
+    Whether the order is one of ours and the update the latest is for the bridge's acceptance write to
+    check (`missions.services.missions_accept_orders`). Leaving one order unfinished for another is not
+    taking an order only: the step must see the first one end.
+    """
+    if not after.busy or after.events != before.events:
+        return False
+    if before.busy:
+        return after.order_id == before.order_id and after.order_update_id > before.order_update_id
+    return (after.order_id, after.order_update_id) != (before.order_id, before.order_update_id)

@@ -362,6 +362,28 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
     return outcome
 
 
+# A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's
+# sweep from sending the order again. It holds the order at this update or a later one.
+ACCEPT_ORDER_SQL = f"""
+    UPDATE {Mission._meta.db_table} SET order_accepted = true, updated_at = %s
+    WHERE robot = %s AND state = '{MissionState.RUNNING}' AND NOT order_accepted
+      AND "order"->>'orderId' = %s AND ("order"->>'orderUpdateId')::bigint <= %s
+"""
+
+
+def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
+    """Mark accepted the running missions' orders that robots took: robot -> (orderId, orderUpdateId).
+
+    One statement per robot in a single round trip, in robot-name order so that two bridges' writes never
+    deadlock. An order that is not the mission's current one (a later update is already out, or the order
+    came from elsewhere) matches nothing.
+    """
+    now = timezone.now()
+    rows = [(now, robot, order_id, update_id) for robot, (order_id, update_id) in sorted(orders.items())]
+    with connection.cursor() as cursor:
+        cursor.executemany(ACCEPT_ORDER_SQL, rows)
+
+
 def _current_missions(robot: str, *, count: int) -> list[dispatch.MissionRecord]:
     """The robot's RUNNING mission, then its queue in FIFO order, locked."""
     with connection.cursor() as cursor:

@@ -2,7 +2,9 @@
 
 Per state message it costs one parse and one pipelined Redis script call; the database sees one batched
 UPDATE per flush period for the robots whose status changed, and a step runs only when something the
-engine cares about changed (`missions.dispatch.engine_digest`). The bridge runs those steps itself, on
+engine cares about changed (`missions.dispatch.state_digest`). A robot that only took the order its last
+step sent needs no step either (`missions.dispatch.takes_order_only`): the flush marks the order accepted,
+so that the sweep does not send it again. The bridge runs the steps itself, on
 threads of its own (`workers.stepper.StepRunner`): a Celery round trip per state would cost more than the
 step. Several bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
@@ -23,8 +25,9 @@ from django.conf import settings
 from django.db import DatabaseError, close_old_connections, connection
 from psycopg.types.json import Jsonb
 
-from missions.dispatch import engine_digest
+from missions.dispatch import StateDigest, state_digest, takes_order_only
 from missions.selectors import robots_with_missions
+from missions.services import mission_orders_accepted
 from robots.choices import AgvClass
 from robots.models import Robot
 from robots.services import robot_request_factsheet
@@ -101,6 +104,7 @@ class Bridge:
         )  # topic, payload, arrival
         self.directory = RobotDirectory()
         self.status: dict[str, RobotStatus] = {}
+        self.accepted_orders: dict[str, tuple[str, int]] = {}  # robot -> (orderId, orderUpdateId) it took
         self.client = new_client("bridge")
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message
@@ -172,7 +176,7 @@ class Bridge:
         """
         pipe = livestate.client().pipeline(transaction=False)  # store_state calls only, results aligned
         side = livestate.client().pipeline(transaction=False)  # counters, then last-seen and online marks
-        stored: list[tuple[str, State]] = []  # in the order of the store_state calls on `pipe`
+        stored: list[tuple[str, State, StateDigest]] = []  # in the order of the store_state calls on `pipe`
         seen: dict[str, float] = {}
         disconnected: set[str] = set()  # a later state in the same batch reconnects
         for topic, payload in batch:
@@ -187,15 +191,16 @@ class Bridge:
                 metrics.count(metrics.MESSAGES_IN, pipe=side, topic=kind.value)
                 if kind == Topic.STATE:
                     state = parse_state(payload)
+                    digest = state_digest(state)
                     livestate.store_state(
                         pipe,
                         name=name,
                         payload=payload,
                         timestamp_ms=_timestamp_ms(state.timestamp),
                         header_id=state.header_id,
-                        digest=engine_digest(state),
+                        digest=digest,
                     )
-                    stored.append((name, state))
+                    stored.append((name, state, digest))
                     seen[name] = time.time()
                     disconnected.discard(name)
                 elif kind == Topic.VISUALIZATION:
@@ -219,10 +224,15 @@ class Bridge:
         stored_results = pipe.execute()
         side_results = side.execute()
         changed = set()
-        for (name, state), result in zip(stored, stored_results, strict=True):
-            if result != livestate.STALE:  # an older state must not overwrite a newer status
+        for (name, state, digest), result in zip(stored, stored_results, strict=True):
+            store = livestate.stored(result)
+            if store.outcome != livestate.STALE:  # an older state must not overwrite a newer status
                 self._remember_status(name, state)
-            if result == livestate.CHANGED:
+            if store.outcome != livestate.CHANGED:
+                continue
+            if store.replaced is not None and takes_order_only(store.replaced, digest):
+                self.accepted_orders[name] = (digest.order_id, digest.order_update_id)
+            else:
                 changed.add(name)
         added = side_results[len(side_results) - len(seen) :]
         came_online = [name for name, was_added in zip(seen, added, strict=True) if was_added]
@@ -286,7 +296,14 @@ class Bridge:
         )
 
     def flush(self) -> None:
-        """Write each robot's changed status in one statement; unchanged robots cost nothing."""
+        """Write the orders robots took, and each robot's changed status in one statement; unchanged robots
+        cost nothing."""
+        if self.accepted_orders:
+            orders, self.accepted_orders = self.accepted_orders, {}
+            try:
+                mission_orders_accepted(orders=orders)
+            except DatabaseError:  # harmless: the sweep's step finds the order taken instead of resending it
+                logger.exception("acceptance of %d orders not written", len(orders))
         now = time.monotonic()
         groups: dict[tuple[str, ...], list[tuple[Any, ...]]] = {}
         for name, status in self.status.items():

@@ -5,32 +5,46 @@ PostgreSQL, so the database sees a write only when something a user or the engin
 """
 
 import threading
+from dataclasses import dataclass
 from functools import cache
 
 import redis
 from django.conf import settings
+
+from missions.dispatch import StateDigest
 
 PREFIX = "fleet"
 ONLINE_SET = f"{PREFIX}:online"
 LAST_SEEN = f"{PREFIX}:last-seen"
 
 # Stores a state unless an equal-or-newer one is already stored (reordered or duplicated messages are
-# harmless), and reports whether what the engine cares about (its digest) changed.
+# harmless), and says whether what steps read (its digest) changed.
 # Messages are ordered by the robot's (timestamp, headerId); a restarted robot resets headerId, not time.
-# KEYS: robot hash. ARGV: payload, timestamp (ms), headerId, digest. Returns 0 stale, 1 same, 2 changed.
+# KEYS: robot hash. ARGV: payload, timestamp (ms), headerId, then the fields of the state's StateDigest.
+# Returns 0 stale, 1 same digest, 2 changed from no digest, else the replaced state's digest fields.
 _STORE_STATE = """
-local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'digest')
+local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'full', 'events', 'order_id', 'order_update_id', 'busy')
 local ts, hid = tonumber(ARGV[2]), tonumber(ARGV[3])
 if old[1] then
   local old_ts, old_hid = tonumber(old[1]), tonumber(old[2])
   if old_ts > ts or (old_ts == ts and old_hid >= hid) then return 0 end
 end
-redis.call('HSET', KEYS[1], 'state', ARGV[1], 'ts', ARGV[2], 'hid', ARGV[3], 'digest', ARGV[4])
+redis.call('HSET', KEYS[1], 'state', ARGV[1], 'ts', ARGV[2], 'hid', ARGV[3],
+  'full', ARGV[4], 'events', ARGV[5], 'order_id', ARGV[6], 'order_update_id', ARGV[7], 'busy', ARGV[8])
 if old[3] == ARGV[4] then return 1 end
-return 2
+if not old[3] then return 2 end
+return {old[3], old[4], old[5], old[6], old[7]}
 """
 
 STALE, UNCHANGED, CHANGED = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Stored:
+    """What storing a state did: STALE, UNCHANGED or CHANGED, and for CHANGED the digest it replaced."""
+
+    outcome: int
+    replaced: StateDigest | None = None
 
 
 _client_lock = threading.Lock()
@@ -60,12 +74,27 @@ def robot_key(name: str) -> str:
 
 
 def store_state(
-    pipe: redis.client.Pipeline, *, name: str, payload: bytes, timestamp_ms: int, header_id: int, digest: str
+    pipe: redis.client.Pipeline,
+    *,
+    name: str,
+    payload: bytes,
+    timestamp_ms: int,
+    header_id: int,
+    digest: StateDigest,
 ) -> None:
-    """Queue the store on `pipe`; its result is STALE, UNCHANGED or CHANGED."""
-    _store_state_script()(
-        keys=[robot_key(name)], args=[payload, timestamp_ms, header_id, digest], client=pipe
-    )
+    """Queue the store on `pipe`; `stored` reads its result."""
+    args = [payload, timestamp_ms, header_id, digest.full, digest.events, digest.order_id]
+    args += [digest.order_update_id, int(digest.busy)]
+    _store_state_script()(keys=[robot_key(name)], args=args, client=pipe)
+
+
+def stored(result: int | list[bytes]) -> Stored:
+    """What a `store_state` did, from its result in the pipeline's results."""
+    if isinstance(result, int):
+        return Stored(result)
+    full, events, order_id, order_update_id, busy = (value.decode() for value in result)
+    replaced = StateDigest(full, events, order_id, int(order_update_id), busy == "1")
+    return Stored(CHANGED, replaced)
 
 
 def latest_state(name: str) -> bytes | None:

@@ -11,7 +11,7 @@ import pytest
 from django.utils import timezone
 
 from missions.choices import FailureCategory, Lifecycle, MissionState
-from missions.dispatch import engine_digest
+from missions.dispatch import state_digest
 from missions.models import Mission
 from missions.services import StepOutcome, mission_cancel, mission_create, mission_delete, robot_step
 from robots.choices import RobotState
@@ -46,7 +46,7 @@ def put_state(robot: Robot, *, header_id: int, state: State | None = None, **fie
         payload=payload,
         timestamp_ms=int((T0 + timedelta(seconds=header_id)).timestamp() * 1000),
         header_id=header_id,
-        digest=engine_digest(parse_state(payload)),
+        digest=state_digest(parse_state(payload)),
     )
     pipe.execute()
 
@@ -136,7 +136,10 @@ def test_an_offline_robot_keeps_its_mission_queued_and_gets_nothing(robot: Robot
 
 def test_a_stored_state_that_no_longer_parses_counts_as_no_state(robot: Robot) -> None:
     pipe = livestate.client().pipeline()
-    livestate.store_state(pipe, name=robot.name, payload=b"{}", timestamp_ms=10**13, header_id=1, digest="x")
+    digest = state_digest(robot_state())
+    livestate.store_state(
+        pipe, name=robot.name, payload=b"{}", timestamp_ms=10**13, header_id=1, digest=digest
+    )
     pipe.execute()
     create("m1", robot)
 

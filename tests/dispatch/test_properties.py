@@ -1,5 +1,5 @@
 """Properties of every step: repeating it changes nothing, inputs are never mutated, and the digest the
-bridge wakes steps by covers what steps read (and not the pose)."""
+bridge wakes steps by covers what steps read (and not the pose) and tells a robot that only took an order."""
 
 import copy
 from collections.abc import Callable
@@ -182,7 +182,7 @@ def test_a_step_never_mutates_its_inputs(scenario: Scenario) -> None:
     assert all(new is not old for new in result.actions for old in dispatcher.actions)
 
 
-# --- engine_digest ---------------------------------------------------------------------------------------
+# --- state_digest ----------------------------------------------------------------------------------------
 
 # A robot half way along a route, with an action running and a battery at 50.2 %.
 BASE = on_order(
@@ -225,7 +225,7 @@ BASE = on_order(
     ],
 )
 def test_the_digest_changes_with_what_steps_read(change: dict) -> None:
-    assert dispatch.engine_digest(BASE.model_copy(update=change)) != dispatch.engine_digest(BASE)
+    assert dispatch.state_digest(BASE.model_copy(update=change)).full != dispatch.state_digest(BASE).full
 
 
 @pytest.mark.parametrize(
@@ -243,4 +243,129 @@ def test_the_digest_changes_with_what_steps_read(change: dict) -> None:
     ],
 )
 def test_the_digest_ignores_high_rate_fields(change: dict) -> None:
-    assert dispatch.engine_digest(BASE.model_copy(update=change)) == dispatch.engine_digest(BASE)
+    assert dispatch.state_digest(BASE.model_copy(update=change)) == dispatch.state_digest(BASE)
+
+
+@pytest.mark.parametrize(
+    ("change", "is_event"),
+    [
+        pytest.param({"order_id": "m1-n1-r0"}, False, id="order-id"),
+        pytest.param({"last_node_sequence_id": 4, "last_node_id": "m1-n0-r0-s4"}, False, id="last-node"),
+        pytest.param({"node_states": []}, False, id="node-states"),
+        pytest.param(
+            {
+                "action_states": [
+                    BASE.action_states[0].model_copy(update={"action_status": ActionStatus.PAUSED})
+                ]
+            },
+            False,
+            id="action-paused",
+        ),
+        pytest.param(
+            {
+                "action_states": [
+                    BASE.action_states[0].model_copy(update={"action_status": ActionStatus.FAILED})
+                ]
+            },
+            True,
+            id="action-failed",
+        ),
+        pytest.param({"errors": [error("blocked", ErrorLevel.WARNING)]}, True, id="error"),
+        pytest.param({"operating_mode": OperatingMode.MANUAL}, True, id="operating-mode"),
+        pytest.param({"paused": True}, True, id="paused"),
+        pytest.param(
+            {"battery_state": BASE.battery_state.model_copy(update={"charging": True})}, True, id="charging"
+        ),
+    ],
+)
+def test_events_are_what_needs_a_step_whatever_order_the_robot_holds(change: dict, is_event: bool) -> None:
+    changed = dispatch.state_digest(BASE.model_copy(update=change))
+    assert (changed.events != dispatch.state_digest(BASE).events) is is_event
+
+
+def test_a_robot_with_nodes_edges_or_actions_left_is_busy() -> None:
+    assert dispatch.state_digest(BASE).busy
+    assert not dispatch.state_digest(robot_state(order_id="m1-n0-r0", last_node_sequence_id=2)).busy
+    waiting_action = robot_state(order_id="m1-n0-r0", action_states=[("a", ActionStatus.WAITING)])
+    assert dispatch.state_digest(waiting_action).busy
+
+
+# --- takes_order_only: the states the bridge need not wake a step for -------------------------------------
+
+IDLE_AFTER_M0 = robot_state(order_id="m0-n0-r0", last_node_sequence_id=2)
+TAKEN_M1 = robot_state(order_id="m1-n0-r0", node_states=[2])
+
+
+def _takes_order_only(before: State, after: State) -> bool:
+    return dispatch.takes_order_only(dispatch.state_digest(before), dispatch.state_digest(after))
+
+
+@pytest.mark.parametrize(
+    ("before", "after"),
+    [
+        pytest.param(IDLE_AFTER_M0, TAKEN_M1, id="idle-takes-a-new-order"),
+        pytest.param(robot_state(), TAKEN_M1, id="fresh-robot-takes-its-first-order"),
+        pytest.param(
+            TAKEN_M1,
+            robot_state(order_id="m1-n0-r0", order_update_id=1, node_states=[2, 4]),
+            id="busy-takes-an-update",
+        ),
+        pytest.param(
+            IDLE_AFTER_M0,
+            robot_state(order_id="m1-n0-r0", node_states=[2], pose=(3.0, 1.0, 0.5, "map")),
+            id="moving-while-taking",
+        ),
+    ],
+)
+def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: State) -> None:
+    assert _takes_order_only(before, after)
+
+
+@pytest.mark.parametrize(
+    ("before", "after"),
+    [
+        pytest.param(TAKEN_M1, robot_state(order_id="m1-n0-r0", last_node_sequence_id=2), id="finishing"),
+        pytest.param(
+            robot_state(order_id="m1-n0-r0", node_states=[2, 4]),
+            robot_state(order_id="m1-n0-r0", last_node_sequence_id=2, node_states=[4]),
+            id="progress-on-the-same-order",
+        ),
+        pytest.param(
+            TAKEN_M1,
+            robot_state(order_id="m2-n0-r0", node_states=[2]),
+            id="leaving-an-order-unfinished-for-another",
+        ),
+        pytest.param(
+            robot_state(order_id="m1-n0-r0", order_update_id=1, node_states=[2]),
+            robot_state(order_id="m1-n0-r0", order_update_id=0, node_states=[2]),
+            id="an-older-update",
+        ),
+        pytest.param(
+            IDLE_AFTER_M0,
+            robot_state(order_id="m1-n0-r0", node_states=[2], errors=[error("noRoute", ErrorLevel.WARNING)]),
+            id="taking-with-an-error",
+        ),
+        pytest.param(
+            IDLE_AFTER_M0,
+            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("ia", ActionStatus.FINISHED)]),
+            id="taking-while-an-instant-action-finishes",
+        ),
+        pytest.param(
+            IDLE_AFTER_M0,
+            robot_state(order_id="m1-n0-r0", node_states=[2], battery=12.0),
+            id="taking-with-a-battery-change",
+        ),
+        pytest.param(
+            IDLE_AFTER_M0,
+            robot_state(order_id="m1-n0-r0", last_node_sequence_id=2),
+            id="taking-and-finishing-at-once",
+        ),
+        pytest.param(
+            robot_state(order_id="m1-n0-r0", last_node_sequence_id=2),
+            TAKEN_M1,
+            id="the-finished-order-again",
+        ),
+    ],
+)
+def test_any_other_change_needs_a_step(before: State, after: State) -> None:
+    assert not _takes_order_only(before, after)

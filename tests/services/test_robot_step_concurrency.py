@@ -8,10 +8,11 @@ from datetime import UTC, datetime
 import pytest
 from django.db import connection
 
+from missions.dispatch import state_digest
 from missions.services import mission_create, robot_step
 from robots.models import Robot
 from robots.services import robot_create
-from vda5050.codec import encode, header_for
+from vda5050.codec import encode, header_for, parse_state
 from vda5050.models import (
     AgvPosition,
     BatteryState,
@@ -52,9 +53,9 @@ def online_robot() -> Iterator[str]:
     robot_create(name=name, prefix=None, spec={})
     Robot.objects.filter(name=name).update(online=True)
     pipe = livestate.client().pipeline()
-    livestate.store_state(
-        pipe, name=name, payload=idle_state(name, 1), timestamp_ms=1, header_id=1, digest="idle"
-    )
+    payload = idle_state(name, 1)
+    digest = state_digest(parse_state(payload))
+    livestate.store_state(pipe, name=name, payload=payload, timestamp_ms=1, header_id=1, digest=digest)
     pipe.execute()
     yield name
     livestate.forget(name)
