@@ -6,6 +6,7 @@ from typing import Any
 
 from django.conf import settings
 from django.db.models import DateTimeField, ExpressionWrapper, F, Q, QuerySet, Value
+from django.db.models.fields.json import KT
 from django.utils import timezone
 
 from fleet.api import QueryValidationError, object_get
@@ -13,6 +14,7 @@ from missions.choices import MissionState
 from missions.filters import MissionFilter
 from missions.models import Mission
 from robots.models import InstantAction, Robot
+from workers import livestate
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
 UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
@@ -54,16 +56,11 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     timeout_at = ExpressionWrapper(
         F("start_timestamp") + Value(timedelta(seconds=1)) * F("timeout"), output_field=DateTimeField()
     )
-    running = (
-        Mission.objects.filter(state=MissionState.RUNNING)
-        .annotate(timeout_at=timeout_at)
-        .filter(
-            Q(timeout_at__lte=now)
-            | Q(deadline__lte=now)
-            | Q(needs_canceled=True)
-            | Q(order_accepted=False, order_sent_at__lte=order_resend)
-        )
+    running = Mission.objects.filter(state=MissionState.RUNNING)
+    ending = running.annotate(timeout_at=timeout_at).filter(
+        Q(timeout_at__lte=now) | Q(deadline__lte=now) | Q(needs_canceled=True)
     )
+    unaccepted = running.filter(order_accepted=False, order_sent_at__lte=order_resend)
     pending = Mission.objects.filter(state=MissionState.PENDING, deadline__lte=now)
     # Queued missions no step has looked at, on robots that run nothing: a creation that raced with the
     # end of the robot's previous mission.
@@ -76,11 +73,29 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     actions = InstantAction.objects.filter(status__isnull=True).filter(
         Q(sent_at__isnull=True) | Q(sent_at__lte=action_resend)
     )
-    names = set(running.values_list("robot", flat=True))
+    names = set(ending.values_list("robot", flat=True))
+    names.update(_orders_not_taken(unaccepted))
     names.update(pending.values_list("robot", flat=True))
     names.update(unnoticed.values_list("robot", flat=True))
     names.update(actions.values_list("robot_id", flat=True))
     return sorted(names)
+
+
+def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
+    """The robots of `missions` whose latest state does not hold the mission's order: those need it again.
+
+    A robot that took the order but whose state has not been stepped yet (a busy fleet) must not get it
+    again: a resend step would only compete with the step on its way, and under load turn a backlog into
+    more load.
+    """
+    rows = list(missions.values_list("robot", KT("order__orderId"), KT("order__orderUpdateId")))
+    held = livestate.orders_held([robot for robot, _, _ in rows])
+    return [robot for robot, order_id, update_id in rows if not _holds(held[robot], order_id, update_id)]
+
+
+def _holds(held: tuple[str, int] | None, order_id: str | None, update_id: str | None) -> bool:
+    """The robot's (orderId, orderUpdateId) is this order at this update or a later one."""
+    return held is not None and held[0] == order_id and update_id is not None and held[1] >= int(update_id)
 
 
 def robots_with_missions() -> list[str]:

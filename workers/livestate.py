@@ -101,6 +101,17 @@ def latest_state(name: str) -> bytes | None:
     return client().hget(robot_key(name), "state")
 
 
+def orders_held(names: list[str]) -> dict[str, tuple[str, int] | None]:
+    """(orderId, orderUpdateId) of each robot's latest state, in one round trip; None without one."""
+    pipe = client().pipeline(transaction=False)
+    for name in names:
+        pipe.hmget(robot_key(name), "order_id", "order_update_id")
+    return {
+        name: None if order_id is None else (order_id.decode(), int(update_id))
+        for name, (order_id, update_id) in zip(names, pipe.execute(), strict=True)
+    }
+
+
 def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:
     pipe.zadd(LAST_SEEN, dict.fromkeys(names, at))
 

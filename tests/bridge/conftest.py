@@ -7,8 +7,9 @@ from typing import Any
 
 import pytest
 
-from robots.models import Robot
+from robots.models import InstantAction, Robot
 from robots.services import robot_create
+from vda5050.models import ActionStatus
 from workers import livestate
 from workers.bridge import Bridge
 from workers.steps import step_marker_key
@@ -34,3 +35,12 @@ def make_robot(db: None) -> Iterator[Callable[..., Robot]]:
 def bridge() -> Bridge:
     """A bridge that only ever handles what a test hands it: run_forever (and so MQTT) is never called."""
     return Bridge()
+
+
+@pytest.fixture
+def robot(make_robot: Callable[..., Robot], bridge: Bridge) -> Robot:
+    """A robot the bridge knows, whose creation-time factsheet request has been answered."""
+    created = make_robot()
+    InstantAction.objects.filter(robot=created).update(status=ActionStatus.FINISHED.value)
+    bridge.directory.reload()
+    return created

@@ -3,6 +3,7 @@
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
+from missions.services import mission_create, robot_step
 from robots.models import Robot
 from tests.dispatch.builders import robot_state
 from vda5050.codec import encode, header_for
@@ -12,6 +13,7 @@ from vda5050.models import (
     ConnectionState,
     Content,
     FactsheetContent,
+    OrderContent,
     VisualizationContent,
 )
 from vda5050.topics import RobotAddress
@@ -74,3 +76,14 @@ def worker_step_requested(robot: Robot | str) -> bool:
     """Whether a Celery step was queued for the robot since the marker was last cleared; clears it."""
     name = robot if isinstance(robot, str) else robot.name
     return bool(livestate.client().delete(step_marker_key(name)))
+
+
+def running_order(bridge: Bridge, robot: Robot) -> str:
+    """Bring the robot online idle, give it a mission and run the step that sends its order; the orderId."""
+    bridge.handle([state_message(robot, header_id=1, at=0.0)])
+    step_requested(bridge, robot)
+    route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
+    mission_create(name=f"{robot.name}-m", prefix=None, spec={"robot": robot.name, "mission_tree": [route]})
+    orders = [m.content for m in robot_step(name=robot.name).messages if isinstance(m.content, OrderContent)]
+    assert len(orders) == 1
+    return orders[0].order_id

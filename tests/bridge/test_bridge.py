@@ -9,13 +9,13 @@ import orjson
 import pytest
 
 from missions.models import Mission
-from missions.services import mission_create, robot_step
 from robots.choices import AgvClass
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, robot_check_heartbeats
 from tests.bridge.messages import (
     connection_message,
     factsheet_message,
+    running_order,
     state_message,
     step_requested,
     topic,
@@ -24,20 +24,11 @@ from tests.bridge.messages import (
 )
 from tests.dispatch.builders import error
 from tests.vda5050.samples import full_factsheet
-from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information, OrderContent
+from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
 from workers import livestate, metrics
 from workers.bridge import Bridge
 
 MakeRobot = Callable[..., Robot]
-
-
-@pytest.fixture
-def robot(make_robot: MakeRobot, bridge: Bridge) -> Robot:
-    """A robot the bridge knows, whose creation-time factsheet request has been answered."""
-    created = make_robot()
-    InstantAction.objects.filter(robot=created).update(status=ActionStatus.FINISHED.value)
-    bridge.directory.reload()
-    return created
 
 
 def _reload(robot: Robot) -> Robot:
@@ -130,21 +121,10 @@ def test_a_state_with_anything_else_the_engine_reads_requests_a_step(
     assert step_requested(bridge, robot)
 
 
-def _running_order(bridge: Bridge, robot: Robot) -> str:
-    """Bring the robot online idle, give it a mission and run the step that sends its order; the orderId."""
-    bridge.handle([state_message(robot, header_id=1, at=0.0)])
-    step_requested(bridge, robot)
-    route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
-    mission_create(name=f"{robot.name}-m", prefix=None, spec={"robot": robot.name, "mission_tree": [route]})
-    orders = [m.content for m in robot_step(name=robot.name).messages if isinstance(m.content, OrderContent)]
-    assert len(orders) == 1
-    return orders[0].order_id
-
-
 def test_a_robot_that_only_took_its_order_needs_no_step_and_the_flush_marks_the_order_accepted(
     bridge: Bridge, robot: Robot
 ) -> None:
-    order_id = _running_order(bridge, robot)
+    order_id = running_order(bridge, robot)
 
     bridge.handle([state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])])
 
@@ -155,7 +135,7 @@ def test_a_robot_that_only_took_its_order_needs_no_step_and_the_flush_marks_the_
 
 
 def test_an_order_the_robot_took_from_elsewhere_is_not_marked_accepted(bridge: Bridge, robot: Robot) -> None:
-    _running_order(bridge, robot)
+    running_order(bridge, robot)
 
     bridge.handle([state_message(robot, header_id=2, at=1.0, order_id="someone-else", node_states=[2])])
     bridge.flush()
@@ -164,7 +144,7 @@ def test_an_order_the_robot_took_from_elsewhere_is_not_marked_accepted(bridge: B
 
 
 def test_a_robot_that_took_its_order_with_an_error_gets_a_step(bridge: Bridge, robot: Robot) -> None:
-    order_id = _running_order(bridge, robot)
+    order_id = running_order(bridge, robot)
     blocked = [error("blocked", ErrorLevel.WARNING)]
 
     bridge.handle(
