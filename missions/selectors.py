@@ -18,6 +18,8 @@ from workers import livestate
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
 UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
+# A robot's state that arrived this long after its order was sent would hold the order had the robot got it.
+ORDER_ECHO_SECONDS = 1.0
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -82,20 +84,32 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
 
 
 def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
-    """The robots of `missions` whose latest state does not hold the mission's order: those need it again.
+    """The robots of `missions` that have not got the mission's order: those need it again.
 
-    A robot that took the order but whose state has not been stepped yet (a busy fleet) must not get it
-    again: a resend step would only compete with the step on its way, and under load turn a backlog into
-    more load.
+    Only a state that arrived well after the order was sent and does not hold it says so. A robot that took
+    the order but whose state has not been stepped yet, or whose state is still on its way (a bridge behind
+    on a busy fleet), must not get it again: a resend step would only compete with the step on its way, and
+    under load turn a backlog into more load.
     """
-    rows = list(missions.values_list("robot", KT("order__orderId"), KT("order__orderUpdateId")))
-    held = livestate.orders_held([robot for robot, _, _ in rows])
-    return [robot for robot, order_id, update_id in rows if not _holds(held[robot], order_id, update_id)]
+    rows = list(
+        missions.values_list("robot", "order_sent_at", KT("order__orderId"), KT("order__orderUpdateId"))
+    )
+    held = livestate.orders_held([robot for robot, *_ in rows])
+    return [
+        robot
+        for robot, sent_at, order_id, update_id in rows
+        if _not_taken(held[robot], sent_at, order_id, update_id)
+    ]
 
 
-def _holds(held: tuple[str, int] | None, order_id: str | None, update_id: str | None) -> bool:
-    """The robot's (orderId, orderUpdateId) is this order at this update or a later one."""
-    return held is not None and held[0] == order_id and update_id is not None and held[1] >= int(update_id)
+def _not_taken(
+    held: livestate.HeldOrder | None, sent_at: datetime, order_id: str | None, update_id: str | None
+) -> bool:
+    """The robot's latest state arrived after the order had time to reach it, and is on another order or
+    on an older update of this one."""
+    if held is None or held.arrived_at < sent_at.timestamp() + ORDER_ECHO_SECONDS:
+        return False
+    return held.order_id != order_id or update_id is None or held.order_update_id < int(update_id)
 
 
 def robots_with_missions() -> list[str]:

@@ -14,6 +14,7 @@ robot's states by the robot's own timestamp and headerId, so it does not matter 
 import logging
 import queue
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from operator import itemgetter
@@ -172,11 +173,14 @@ class Bridge:
     def handle(self, batch: list[tuple[str, bytes]], received_at: float | None = None) -> None:
         """Parse a batch, store states in one Redis pipeline, then act on what changed.
 
-        `received_at` (epoch s) is when the batch's first message arrived: step latency counts from there.
+        `received_at` (epoch s) is when the batch's first message arrived: step latency counts from there,
+        and it stands for every state's arrival (the earliest, so a resend never comes early).
         """
-        pipe = livestate.client().pipeline(transaction=False)  # store_state calls only, results aligned
-        side = livestate.client().pipeline(transaction=False)  # counters, then last-seen and online marks
+        arrived_at = received_at or time.time()
+        # One round trip: the store_state calls first (their results lead), then counters and marks.
+        pipe = livestate.client().pipeline(transaction=False)
         stored: list[tuple[str, State, StateDigest]] = []  # in the order of the store_state calls on `pipe`
+        counts: Counter[tuple[str, str]] = Counter()  # (counter, topic) -> messages: one HINCRBY each
         seen: dict[str, float] = {}
         disconnected: set[str] = set()  # a later state in the same batch reconnects
         for topic, payload in batch:
@@ -186,9 +190,9 @@ class Bridge:
                 identity, kind = parse_topic(topic)
                 name = self.directory.name(identity)
                 if name is None:
-                    metrics.count(metrics.MESSAGES_INVALID, pipe=side, topic="unknown_robot")
+                    counts[metrics.MESSAGES_INVALID, "unknown_robot"] += 1
                     continue
-                metrics.count(metrics.MESSAGES_IN, pipe=side, topic=kind.value)
+                counts[metrics.MESSAGES_IN, kind.value] += 1
                 if kind == Topic.STATE:
                     state = parse_state(payload)
                     digest = state_digest(state)
@@ -199,6 +203,7 @@ class Bridge:
                         timestamp_ms=_timestamp_ms(state.timestamp),
                         header_id=state.header_id,
                         digest=digest,
+                        arrived_at=arrived_at,
                     )
                     stored.append((name, state, digest))
                     seen[name] = time.time()
@@ -215,14 +220,16 @@ class Bridge:
                 elif kind == Topic.FACTSHEET:
                     self._store_factsheet(name, payload)
             except (ProtocolError, DatabaseError) as exc:  # DatabaseError: a factsheet PostgreSQL refuses
-                metrics.count(metrics.MESSAGES_INVALID, pipe=side, topic=topic.rsplit("/", 1)[-1][:32])
+                counts[metrics.MESSAGES_INVALID, topic.rsplit("/", 1)[-1][:32]] += 1
                 logger.warning("dropped malformed message on %s: %s", topic, exc)
+        for (counter, topic_label), by in counts.items():
+            metrics.count(counter, by=by, pipe=pipe, topic=topic_label)
         if seen:
-            livestate.mark_seen(side, list(seen), max(seen.values()))
+            livestate.mark_seen(pipe, list(seen), max(seen.values()))
             for name in seen:
-                side.sadd(livestate.ONLINE_SET, name)
-        stored_results = pipe.execute()
-        side_results = side.execute()
+                pipe.sadd(livestate.ONLINE_SET, name)
+        results = livestate.execute(pipe) if len(pipe) else []
+        stored_results = results[: len(stored)]
         changed = set()
         for (name, state, digest), result in zip(stored, stored_results, strict=True):
             store = livestate.stored(result)
@@ -234,9 +241,9 @@ class Bridge:
                 self.accepted_orders[name] = (digest.order_id, digest.order_update_id)
             else:
                 changed.add(name)
-        added = side_results[len(side_results) - len(seen) :]
+        added = results[len(results) - len(seen) :]
         came_online = [name for name, was_added in zip(seen, added, strict=True) if was_added]
-        self._act(changed, came_online, disconnected, received_at=received_at or time.time())
+        self._act(changed, came_online, disconnected, received_at=arrived_at)
 
     def _act(
         self, changed: set[str], came_online: list[str], disconnected: set[str], *, received_at: float

@@ -4,9 +4,11 @@ The bridge writes here on every message (cheap, in memory); the dispatch step re
 PostgreSQL, so the database sees a write only when something a user or the engine cares about changed.
 """
 
+import hashlib
 import threading
 from dataclasses import dataclass
 from functools import cache
+from typing import Any
 
 import redis
 from django.conf import settings
@@ -20,7 +22,8 @@ LAST_SEEN = f"{PREFIX}:last-seen"
 # Stores a state unless an equal-or-newer one is already stored (reordered or duplicated messages are
 # harmless), and says whether what steps read (its digest) changed.
 # Messages are ordered by the robot's (timestamp, headerId); a restarted robot resets headerId, not time.
-# KEYS: robot hash. ARGV: payload, timestamp (ms), headerId, then the fields of the state's StateDigest.
+# KEYS: robot hash. ARGV: payload, timestamp (ms), headerId, the fields of the state's StateDigest, then
+# when the state arrived (epoch s, the bridge's clock).
 # Returns 0 stale, 1 same digest, 2 changed from no digest, else the replaced state's digest fields.
 _STORE_STATE = """
 local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'full', 'events', 'order_id', 'order_update_id', 'busy')
@@ -30,11 +33,14 @@ if old[1] then
   if old_ts > ts or (old_ts == ts and old_hid >= hid) then return 0 end
 end
 redis.call('HSET', KEYS[1], 'state', ARGV[1], 'ts', ARGV[2], 'hid', ARGV[3],
-  'full', ARGV[4], 'events', ARGV[5], 'order_id', ARGV[6], 'order_update_id', ARGV[7], 'busy', ARGV[8])
+  'full', ARGV[4], 'events', ARGV[5], 'order_id', ARGV[6], 'order_update_id', ARGV[7], 'busy', ARGV[8],
+  'at', ARGV[9])
 if old[3] == ARGV[4] then return 1 end
 if not old[3] then return 2 end
 return {old[3], old[4], old[5], old[6], old[7]}
 """
+
+_STORE_STATE_SHA = hashlib.sha1(_STORE_STATE.encode()).hexdigest()
 
 STALE, UNCHANGED, CHANGED = 0, 1, 2
 
@@ -64,11 +70,6 @@ def client() -> redis.Redis:
         return _cached_client()
 
 
-@cache
-def _store_state_script() -> "redis.commands.core.Script":
-    return client().register_script(_STORE_STATE)
-
-
 def robot_key(name: str) -> str:
     return f"{PREFIX}:robot:{name}"
 
@@ -81,11 +82,37 @@ def store_state(
     timestamp_ms: int,
     header_id: int,
     digest: StateDigest,
+    arrived_at: float,
 ) -> None:
-    """Queue the store on `pipe`; `stored` reads its result."""
+    """Queue the store on `pipe`, to run with `execute`; `stored` reads its result. `arrived_at`: epoch s,
+    this host's clock."""
     args = [payload, timestamp_ms, header_id, digest.full, digest.events, digest.order_id]
-    args += [digest.order_update_id, int(digest.busy)]
-    _store_state_script()(keys=[robot_key(name)], args=args, client=pipe)
+    args += [digest.order_update_id, int(digest.busy), repr(arrived_at)]
+    pipe.evalsha(_STORE_STATE_SHA, 1, robot_key(name), *args)
+
+
+def execute(pipe: redis.client.Pipeline) -> list[Any]:
+    """Run `pipe` in one round trip, loading the store script first only if Redis lacks it (a restart).
+
+    redis-py's own script objects ask Redis whether it has the script before every pipeline: a round trip
+    per batch of states on the bridge's hot path."""
+    commands = list(pipe.command_stack)  # (args, options) of each call; execute() empties the stack
+    results = pipe.execute(raise_on_error=False)
+    missing = [
+        index for index, result in enumerate(results) if isinstance(result, redis.exceptions.NoScriptError)
+    ]
+    if missing:
+        client().script_load(_STORE_STATE)
+        again = client().pipeline(transaction=False)
+        for index in missing:
+            args, options = commands[index]
+            again.execute_command(*args, **options)
+        for index, result in zip(missing, again.execute(raise_on_error=False), strict=True):
+            results[index] = result
+    for result in results:
+        if isinstance(result, Exception):
+            raise result
+    return results
 
 
 def stored(result: int | list[bytes]) -> Stored:
@@ -101,14 +128,23 @@ def latest_state(name: str) -> bytes | None:
     return client().hget(robot_key(name), "state")
 
 
-def orders_held(names: list[str]) -> dict[str, tuple[str, int] | None]:
-    """(orderId, orderUpdateId) of each robot's latest state, in one round trip; None without one."""
+@dataclass(frozen=True)
+class HeldOrder:
+    """The order a robot's latest state holds, and when that state arrived (epoch s; 0 if not recorded)."""
+
+    order_id: str
+    order_update_id: int
+    arrived_at: float
+
+
+def orders_held(names: list[str]) -> dict[str, HeldOrder | None]:
+    """The order each robot's latest state holds, in one round trip; None for a robot without a state."""
     pipe = client().pipeline(transaction=False)
     for name in names:
-        pipe.hmget(robot_key(name), "order_id", "order_update_id")
+        pipe.hmget(robot_key(name), "order_id", "order_update_id", "at")
     return {
-        name: None if order_id is None else (order_id.decode(), int(update_id))
-        for name, (order_id, update_id) in zip(names, pipe.execute(), strict=True)
+        name: None if order_id is None else HeldOrder(order_id.decode(), int(update_id), float(at or 0))
+        for name, (order_id, update_id, at) in zip(names, pipe.execute(), strict=True)
     }
 
 

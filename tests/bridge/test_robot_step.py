@@ -3,6 +3,7 @@
 The robot's state is put into Redis by hand, as the bridge stores it; missions are created by the service.
 """
 
+import time
 from collections.abc import Callable
 from datetime import timedelta
 from typing import Any
@@ -47,6 +48,7 @@ def put_state(robot: Robot, *, header_id: int, state: State | None = None, **fie
         timestamp_ms=int((T0 + timedelta(seconds=header_id)).timestamp() * 1000),
         header_id=header_id,
         digest=state_digest(parse_state(payload)),
+        arrived_at=time.time(),
     )
     pipe.execute()
 
@@ -138,7 +140,13 @@ def test_a_stored_state_that_no_longer_parses_counts_as_no_state(robot: Robot) -
     pipe = livestate.client().pipeline()
     digest = state_digest(robot_state())
     livestate.store_state(
-        pipe, name=robot.name, payload=b"{}", timestamp_ms=10**13, header_id=1, digest=digest
+        pipe,
+        name=robot.name,
+        payload=b"{}",
+        timestamp_ms=10**13,
+        header_id=1,
+        digest=digest,
+        arrived_at=time.time(),
     )
     pipe.execute()
     create("m1", robot)

@@ -1,13 +1,14 @@
 """Beat's sweep (`robots_due_for_step`) against the real PostgreSQL and Redis: which robots' orders it has
 stepped again, judged by the robots' latest states as the bridge stored them."""
 
+import time
 from datetime import timedelta
 
 from django.conf import settings
 from django.utils import timezone
 
 from missions.models import Mission
-from missions.selectors import robots_due_for_step
+from missions.selectors import ORDER_ECHO_SECONDS, robots_due_for_step
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
 from workers.bridge import Bridge
@@ -15,17 +16,38 @@ from workers.bridge import Bridge
 RESEND_DUE = timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS + 1)
 
 
+def after_the_order() -> float:
+    """An arrival time (epoch s) by which a robot that got the order just sent would report holding it."""
+    return time.time() + ORDER_ECHO_SECONDS + 1
+
+
 def test_an_order_the_robot_has_not_taken_is_due_again(bridge: Bridge, robot: Robot) -> None:
     running_order(bridge, robot)
+    bridge.handle([state_message(robot, header_id=2, at=1.0)], received_at=after_the_order())
 
     assert robot.name in robots_due_for_step(now=timezone.now() + RESEND_DUE)
+
+
+def test_an_order_is_not_sent_again_before_a_state_says_the_robot_lacks_it(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """No state since the order went out, or one that may have left the robot before the order reached it:
+    a bridge behind on a busy fleet looks like that, and resending would only add to its load."""
+    running_order(bridge, robot)
+    assert robot.name not in robots_due_for_step(now=timezone.now() + RESEND_DUE)
+
+    bridge.handle([state_message(robot, header_id=2, at=1.0)], received_at=time.time())
+    assert robot.name not in robots_due_for_step(now=timezone.now() + RESEND_DUE)
 
 
 def test_an_order_the_robot_took_is_not_sent_again_before_its_state_is_stepped(
     bridge: Bridge, robot: Robot
 ) -> None:
     order_id = running_order(bridge, robot)
-    bridge.handle([state_message(robot, header_id=2, at=1.0, order_id=order_id, last_node_sequence_id=2)])
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, last_node_sequence_id=2)],
+        received_at=after_the_order(),
+    )
     assert not Mission.objects.get(robot=robot.name).order_accepted  # the step that would mark it waits
 
     assert robot.name not in robots_due_for_step(now=timezone.now() + RESEND_DUE)
@@ -33,7 +55,10 @@ def test_an_order_the_robot_took_is_not_sent_again_before_its_state_is_stepped(
 
 def test_a_robot_on_an_older_update_of_the_order_is_due_again(bridge: Bridge, robot: Robot) -> None:
     order_id = running_order(bridge, robot)
-    bridge.handle([state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])])
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])],
+        received_at=after_the_order(),
+    )
     mission = Mission.objects.get(robot=robot.name)
     Mission.objects.filter(name=mission.name).update(order={**mission.order, "orderUpdateId": 1})
 

@@ -1,6 +1,7 @@
 """Steps of one robot are serialized: concurrent steps never send an order twice or skip a transition."""
 
 import threading
+import time
 import uuid
 from collections.abc import Iterator
 from datetime import UTC, datetime
@@ -55,7 +56,9 @@ def online_robot() -> Iterator[str]:
     pipe = livestate.client().pipeline()
     payload = idle_state(name, 1)
     digest = state_digest(parse_state(payload))
-    livestate.store_state(pipe, name=name, payload=payload, timestamp_ms=1, header_id=1, digest=digest)
+    livestate.store_state(
+        pipe, name=name, payload=payload, timestamp_ms=1, header_id=1, digest=digest, arrived_at=time.time()
+    )
     pipe.execute()
     yield name
     livestate.forget(name)
