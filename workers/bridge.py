@@ -23,12 +23,11 @@ from typing import Any
 import orjson
 import paho.mqtt.client as mqtt
 from django.conf import settings
-from django.db import DatabaseError, close_old_connections, connection
-from psycopg.types.json import Jsonb
+from django.db import DatabaseError, close_old_connections, connection, transaction
 
 from missions.dispatch import StateDigest, state_digest, takes_order_only
 from missions.selectors import robots_with_missions
-from missions.services import mission_orders_accepted
+from missions.services import jsonb, mission_orders_accepted
 from robots.choices import AgvClass
 from robots.models import Robot
 from robots.services import robot_request_factsheet
@@ -324,7 +323,7 @@ class Bridge:
             status.pending = {}
             status.written_at = now
             columns = tuple(column for column in STATUS_COLUMNS if column in status.written)
-            values = [Jsonb(status.written[c]) if c in JSON_COLUMNS else status.written[c] for c in columns]
+            values = [jsonb(status.written[c]) if c in JSON_COLUMNS else status.written[c] for c in columns]
             if status.last_state_at is not None:  # a robot only seen on visualization keeps its time
                 columns += ("last_state_at",)
                 values.append(status.last_state_at)
@@ -348,8 +347,9 @@ class Bridge:
 
 
 def _write_status(columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> None:
+    """One round trip and one commit (in autocommit each row would wait for its own WAL flush)."""
     assignments = ", ".join(f"{column} = %s" for column in columns)
-    with connection.cursor() as cursor:
+    with transaction.atomic(), connection.cursor() as cursor:
         cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", rows)
 
 

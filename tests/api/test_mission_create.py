@@ -141,6 +141,18 @@ def test_unnamed_nodes_are_named_by_their_index_and_defaults_are_applied(api):
     assert response.json()["mission_tree"] == [as_returned(node) for node in stored]
 
 
+def test_notify_data_is_stored_as_given_even_beyond_64_bit_integers(api):
+    json_data = {"order": 2**70, "ratio": 0.5, "tags": ["a", None, True], "nested": {"é": "ü"}}
+
+    response = api.post(
+        "/mission", mission({"notify": {"url": "http://localhost:8000/done", "json_data": json_data}})
+    )
+
+    assert response.status_code == 200, response.json()
+    stored = Mission.objects.get(name=response.json()["name"]).mission_tree[0]["notify"]["json_data"]
+    assert stored == json_data
+
+
 def test_spec_defaults(api):
     body = api.post("/mission", mission(route())).json()
 

@@ -7,6 +7,8 @@ from collections.abc import Callable
 
 import orjson
 import pytest
+from django.db import connection
+from django.test.utils import CaptureQueriesContext
 
 from missions.models import Mission
 from robots.choices import AgvClass
@@ -38,6 +40,14 @@ def _reload(robot: Robot) -> Robot:
 def _counter(name: str, **labels: str) -> int:
     field = name + "".join(f"|{key}={value}" for key, value in sorted(labels.items()))
     return int(livestate.client().hget(metrics.COUNTERS, field) or 0)
+
+
+def _flush_statements(bridge: Bridge) -> list[str]:
+    """The SQL statements a flush runs, without the savepoint around them (the test's transaction holds
+    the flush's own)."""
+    with CaptureQueriesContext(connection) as queries:
+        bridge.flush()
+    return [q["sql"] for q in queries if not q["sql"].startswith(("SAVEPOINT", "RELEASE SAVEPOINT"))]
 
 
 def _waiting_factsheet_requests(robot: Robot) -> int:
@@ -283,15 +293,12 @@ def test_user_info_becomes_the_robots_info_messages(bridge: Bridge, robot: Robot
     assert _reload(robot).info_messages == {"shelf": 4}
 
 
-def test_one_flush_writes_all_changed_robots_in_one_statement(
-    bridge: Bridge, make_robot: MakeRobot, django_assert_num_queries
-) -> None:
+def test_one_flush_writes_all_changed_robots_in_one_statement(bridge: Bridge, make_robot: MakeRobot) -> None:
     robots = [make_robot(), make_robot()]
     bridge.directory.reload()
     bridge.handle([state_message(r, battery=30.0 + i) for i, r in enumerate(robots)])
 
-    with django_assert_num_queries(1):
-        bridge.flush()
+    assert len(_flush_statements(bridge)) == 1
 
     assert [_reload(r).battery_level for r in robots] == [30.0, 31.0]
 
@@ -307,9 +314,7 @@ def test_a_flush_with_nothing_changed_writes_nothing(
         bridge.flush()
 
 
-def test_a_flush_writes_only_the_robots_that_changed(
-    bridge: Bridge, make_robot: MakeRobot, django_assert_num_queries
-) -> None:
+def test_a_flush_writes_only_the_robots_that_changed(bridge: Bridge, make_robot: MakeRobot) -> None:
     moving, parked = make_robot(), make_robot()
     bridge.directory.reload()
     bridge.handle([state_message(moving, header_id=1), state_message(parked, header_id=1)])
@@ -322,8 +327,7 @@ def test_a_flush_writes_only_the_robots_that_changed(
             state_message(parked, header_id=2, at=1.0),
         ]
     )
-    with django_assert_num_queries(1):
-        bridge.flush()
+    assert len(_flush_statements(bridge)) == 1
 
     assert (_reload(moving).pose_x, _reload(parked).battery_level) == (9.0, -1.0)
 
