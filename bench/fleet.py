@@ -63,6 +63,7 @@ class Options:
     nodes: int = 5
     queue: int = 2
     delay: float = 0.0
+    start_rate: float = 0.0  # missions/s in the start phase; 0: all at once
     state_hz: float = 1.0
     duration: float = 30.0
     warmup: float = 5.0
@@ -262,7 +263,10 @@ class Bench:
         """Every robot idle gets one mission: POST -> first order received is the start latency."""
         logger.info("start phase: one mission for each idle robot")
         self.posting = True
-        for load in self.loads:
+        began = self.loop.time()
+        for index, load in enumerate(self.loads):
+            if self.options.start_rate > 0:
+                await asyncio.sleep(max(0.0, began + index / self.options.start_rate - self.loop.time()))
             self._post(load, measure_start=True)
         deadline = self.loop.time() + START_TIMEOUT
         while any(load.starting for load in self.loads) and self.loop.time() < deadline:
@@ -615,6 +619,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--queue", type=int, default=defaults.queue, help="missions kept queued per robot Q")
     parser.add_argument("--delay", type=float, default=defaults.delay, help="s a robot takes per order")
+    parser.add_argument(
+        "--start-rate",
+        type=float,
+        default=defaults.start_rate,
+        help="missions/s posted in the start phase, as robots fall idle in a working fleet (0: all at once)",
+    )
     parser.add_argument(
         "--state-hz", type=float, default=defaults.state_hz, help="periodic states per robot per s"
     )

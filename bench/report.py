@@ -244,11 +244,16 @@ def _order(result: dict[str, Any]) -> tuple[str, str, float, int]:
 def _settings(options: dict[str, Any]) -> str:
     missions = (
         f"K={options['nodes']} route nodes per mission, queue Q={options['queue']}, "
-        f"delay {options['delay']} s, "
+        f"delay {options['delay']} s, start phase {_start_rate(options)}, "
         if options["mode"] == "run"
         else "no missions, "
     )
     return f"{missions}state {options['state_hz']} Hz, warm-up {options['warmup']} s"
+
+
+def _start_rate(options: dict[str, Any]) -> str:
+    rate = options.get("start_rate", 0.0)  # results written before the option existed: all at once
+    return f"{rate:g} missions/s" if rate else "all at once"
 
 
 def _server_cpu(result: dict[str, Any], key: str) -> float:

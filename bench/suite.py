@@ -48,7 +48,8 @@ SUITES = {
         "idle-n2000": ["--mode", "idle", "--robots", "2000", "--duration", "60", "--warmup", "60"],
         "saturation-n100": ["--nodes", "1", "--robots", "100", "--duration", "60", "--warmup", "10"],
         "saturation-n500": ["--nodes", "1", "--robots", "500", "--duration", "60", "--warmup", "20"],
-        # 30 minutes in 1-minute slices: latency flat over any 5 minutes, and memory flat over 30.
+        # 30 minutes in 1-minute slices: latency flat over any 5 minutes, and memory flat over 30. The start
+        # phase posts at the rate robots finish orders (N / delay), as robots fall idle in a working fleet.
         "realistic-n1000": [
             "--nodes",
             "1",
@@ -56,6 +57,8 @@ SUITES = {
             "1000",
             "--delay",
             "5",
+            "--start-rate",
+            "200",
             "--duration",
             "1800",
             "--warmup",
@@ -70,6 +73,8 @@ SUITES = {
             "2000",
             "--delay",
             "10",
+            "--start-rate",
+            "200",
             "--duration",
             "300",
             "--warmup",

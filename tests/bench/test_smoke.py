@@ -14,6 +14,7 @@ import subprocess
 import threading
 import uuid
 from collections.abc import Iterator
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 PREFIX = "uagv/v2/RobotCompany"  # the server's default identity for robots created by name
 GENERATOR_TIMEOUT = 180  # s; generous, the machine is shared
+START_RATE = 5.0  # missions/s in the start phase
 
 
 @pytest.fixture(scope="module")
@@ -119,6 +121,8 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
                 "5",
                 "--nodes",
                 "3",
+                "--start-rate",
+                str(START_RATE),
                 "--duration",
                 "10",
                 "--warmup",
@@ -155,6 +159,12 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
     assert result["errors"]["post_errors"] == result["errors"]["malformed_messages"] == 0
     assert result["errors"]["start_timeouts"] == result["errors"]["mqtt_disconnects"] == 0
     assert result["start_latency_ms"]["count"] == 5
+    first_orders = {}  # robot -> when the server sent it its first order (epoch s, the server's clock)
+    for order in capture.of("order"):
+        sent = datetime.fromisoformat(order["timestamp"].replace("Z", "+00:00")).timestamp()
+        first_orders[order["serialNumber"]] = min(sent, first_orders.get(order["serialNumber"], sent))
+    # Posted at START_RATE, the five first orders span four intervals (all at once, a few milliseconds).
+    assert max(first_orders.values()) - min(first_orders.values()) >= 3 / START_RATE
     assert result["step_latency_ms"]["count"] > 0
     assert result["throughput"]["orders_per_second"] > 0
     assert set(result["cpu"]) == {*DEFAULT_PROCESS_GROUPS, GENERATOR}
