@@ -34,6 +34,9 @@ ORDER_KINDS = frozenset({engine.ROUTE, engine.MOVE, engine.ACTION})
 TIMED_OUT = "Mission timed out"
 DEADLINE_PASSED = "Mission deadline passed"
 ACTION_FAILURE = "Action failure"
+# A robot's state that arrived this long after its order was sent would hold the order had the robot got
+# it; an earlier one may have left the robot before the order reached it, so it says nothing.
+ORDER_ECHO = timedelta(seconds=1)
 
 
 @dataclass(frozen=True)
@@ -120,11 +123,14 @@ def step(
     now: datetime,
     robot: RobotView,
     state: State | None,
+    state_arrived_at: datetime | None,
     mission: MissionRecord | None,
     actions: list[ActionRecord],
     settings: DispatchSettings,
 ) -> StepResult:
-    """Advance `robot` and its `mission` (the RUNNING one, else the head of its queue) by one step."""
+    """Advance `robot` and its `mission` (the RUNNING one, else the head of its queue) by one step.
+
+    `state_arrived_at` is when `state` reached the server (None if not known)."""
     result = StepResult(
         robot_state=robot.state,
         mission=mission,
@@ -139,7 +145,7 @@ def step(
         if mission.state == engine.PENDING:
             _try_start(result, robot, state, mission, now)
         if mission.state == engine.RUNNING:
-            _advance(result, robot, state, mission, now, settings)
+            _advance(result, robot, state, state_arrived_at, mission, now, settings)
     _send_instant_actions(result, robot, state, now, settings)
     return result
 
@@ -282,6 +288,7 @@ def _advance(
     result: StepResult,
     robot: RobotView,
     state: State | None,
+    state_arrived_at: datetime | None,
     mission: MissionRecord,
     now: datetime,
     settings: DispatchSettings,
@@ -294,7 +301,7 @@ def _advance(
     if _ended_by_time_or_owner(result, robot, state, mission, tree, now):
         return
     if mission.order is not None and state is not None:
-        _follow_order(result, state, mission, tree, now, settings)
+        _follow_order(result, state, state_arrived_at, mission, tree, now, settings)
         if mission.done:
             return
     if mission.needs_canceled:
@@ -341,6 +348,7 @@ def _order_active(state: State | None, mission: MissionRecord) -> bool:
 def _follow_order(
     result: StepResult,
     state: State,
+    state_arrived_at: datetime | None,
     mission: MissionRecord,
     tree: engine.Tree,
     now: datetime,
@@ -360,7 +368,7 @@ def _follow_order(
         if vda_state.order_accepted(state, order.order_id, order.order_update_id):
             mission.order_accepted = True
         else:
-            if _resend_due(state, mission, tree, leaf, now, settings):
+            if _resend_due(state, state_arrived_at, mission, tree, leaf, now, settings):
                 mission.order_sent_at = now
                 result.messages.append(Outgoing(order))
             return
@@ -376,18 +384,30 @@ def _follow_order(
         _follow_route(state, mission, leaf, order)
 
 
+def arrived_after_order(state_arrived_at: datetime | None, order_sent_at: datetime) -> bool:
+    """A state that arrived then would hold the order sent at `order_sent_at`, had the robot got it."""
+    return state_arrived_at is not None and state_arrived_at >= order_sent_at + ORDER_ECHO
+
+
 def _resend_due(
     state: State,
+    state_arrived_at: datetime | None,
     mission: MissionRecord,
     tree: engine.Tree,
     leaf: engine.Node,
     now: datetime,
     settings: DispatchSettings,
 ) -> bool:
-    """An unacknowledged order is re-sent after a while, unless the robot may not take orders now or the
-    order went stale with a route update (then it is canceled, never re-sent)."""
-    if mission.order_sent_at is not None and now - mission.order_sent_at < settings.order_resend:
-        return False
+    """An unacknowledged order is re-sent after a while, once a state that arrived well after it shows the
+    robot lacks it, unless the robot may not take orders now or the order went stale with a route update
+    (then it is canceled, never re-sent). A state that may have left the robot before the order reached it
+    (a bridge behind on a busy fleet stores such states late) is no reason to resend: that would only add
+    load when there is too much."""
+    if mission.order_sent_at is not None:
+        if now - mission.order_sent_at < settings.order_resend:
+            return False
+        if not arrived_after_order(state_arrived_at, mission.order_sent_at):
+            return False
     return vda_state.may_receive_orders(state) and not _route_update_pending(tree, mission, leaf, settings)
 
 

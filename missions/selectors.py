@@ -10,6 +10,7 @@ from django.db.models.fields.json import KT
 from django.utils import timezone
 
 from fleet.api import QueryValidationError, object_get
+from missions import dispatch
 from missions.choices import MissionState
 from missions.filters import MissionFilter
 from missions.models import Mission
@@ -18,8 +19,6 @@ from workers import livestate
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
 UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
-# A robot's state that arrived this long after its order was sent would hold the order had the robot got it.
-ORDER_ECHO_SECONDS = 1.0
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -84,12 +83,11 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
 
 
 def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
-    """The robots of `missions` that have not got the mission's order: those need it again.
+    """The robots of `missions` whose step would send the mission's order again (`dispatch._resend_due`):
+    their latest state arrived well after the order and does not hold it.
 
-    Only a state that arrived well after the order was sent and does not hold it says so. A robot that took
-    the order but whose state has not been stepped yet, or whose state is still on its way (a bridge behind
-    on a busy fleet), must not get it again: a resend step would only compete with the step on its way, and
-    under load turn a backlog into more load.
+    A robot that took the order but whose state has not been stepped yet, or whose state is still on its
+    way, gets no step: it would find nothing to do, and under load only turn a backlog into more load.
     """
     rows = list(
         missions.values_list("robot", "order_sent_at", KT("order__orderId"), KT("order__orderUpdateId"))
@@ -107,7 +105,7 @@ def _not_taken(
 ) -> bool:
     """The robot's latest state arrived after the order had time to reach it, and is on another order or
     on an older update of this one."""
-    if held is None or held.arrived_at < sent_at.timestamp() + ORDER_ECHO_SECONDS:
+    if held is None or not dispatch.arrived_after_order(held.arrived_at, sent_at):
         return False
     return held.order_id != order_id or update_id is None or held.order_update_id < int(update_id)
 

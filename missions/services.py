@@ -339,7 +339,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
         )
         outcome.address = RobotAddress(*address)
         outcome.instant_actions_key = actions_key
-        state = _live_state(name)
+        state, state_arrived_at = _live_state(name)
         actions = (
             [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
         )
@@ -361,6 +361,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
                 now=now,
                 robot=view,
                 state=state,
+                state_arrived_at=state_arrived_at,
                 mission=mission,
                 actions=actions,
                 settings=dispatch_settings(),
@@ -435,15 +436,16 @@ def dispatch_settings() -> dispatch.DispatchSettings:
     )
 
 
-def _live_state(name: str) -> State | None:
-    payload = livestate.latest_state(name)
+def _live_state(name: str) -> tuple[State | None, datetime | None]:
+    """The robot's latest state and when it arrived."""
+    payload, arrived_at = livestate.latest_state(name)
     if payload is None:
-        return None
+        return None, None
     try:
-        return parse_state(payload)
+        return parse_state(payload), arrived_at
     except ProtocolError:  # the bridge only stores states it could parse; a stale format is not fatal
         logger.warning("stored state of robot %s no longer parses", name)
-        return None
+        return None, None
 
 
 def _store_mission(before: dispatch.MissionRecord, after: dispatch.MissionRecord) -> None:

@@ -7,8 +7,9 @@ PostgreSQL, so the database sees a write only when something a user or the engin
 import hashlib
 import threading
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from functools import cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import redis
 from django.conf import settings
@@ -124,17 +125,25 @@ def stored(result: int | list[bytes]) -> Stored:
     return Stored(CHANGED, replaced)
 
 
-def latest_state(name: str) -> bytes | None:
-    return client().hget(robot_key(name), "state")
+class LatestState(NamedTuple):
+    """A robot's latest stored state (its JSON), and when it arrived (None if not recorded)."""
+
+    payload: bytes | None
+    arrived_at: datetime | None
+
+
+def latest_state(name: str) -> LatestState:
+    payload, at = client().hmget(robot_key(name), "state", "at")
+    return LatestState(payload, _arrival(at))
 
 
 @dataclass(frozen=True)
 class HeldOrder:
-    """The order a robot's latest state holds, and when that state arrived (epoch s; 0 if not recorded)."""
+    """The order a robot's latest state holds, and when that state arrived (None if not recorded)."""
 
     order_id: str
     order_update_id: int
-    arrived_at: float
+    arrived_at: datetime | None
 
 
 def orders_held(names: list[str]) -> dict[str, HeldOrder | None]:
@@ -143,9 +152,14 @@ def orders_held(names: list[str]) -> dict[str, HeldOrder | None]:
     for name in names:
         pipe.hmget(robot_key(name), "order_id", "order_update_id", "at")
     return {
-        name: None if order_id is None else HeldOrder(order_id.decode(), int(update_id), float(at or 0))
+        name: None if order_id is None else HeldOrder(order_id.decode(), int(update_id), _arrival(at))
         for name, (order_id, update_id, at) in zip(names, pipe.execute(), strict=True)
     }
+
+
+def _arrival(at: bytes | None) -> datetime | None:
+    """A state's stored arrival time (epoch s); states stored before it was recorded have none."""
+    return None if at is None else datetime.fromtimestamp(float(at), UTC)
 
 
 def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:

@@ -66,7 +66,7 @@ def test_a_first_state_is_stored_and_brings_the_robot_online_with_a_step_and_a_f
 
     bridge.handle([message])
 
-    assert livestate.latest_state(robot.name) == message[1]
+    assert livestate.latest_state(robot.name).payload == message[1]
     assert _reload(robot).online is True
     assert livestate.client().sismember(livestate.ONLINE_SET, robot.name)
     assert livestate.last_seen([robot.name])[robot.name] is not None
@@ -92,7 +92,7 @@ def test_a_repeated_state_with_nothing_new_for_the_engine_requests_no_step(
 
     bridge.handle([later])
 
-    assert livestate.latest_state(robot.name) == later[1]  # stored all the same: the pose is newer
+    assert livestate.latest_state(robot.name).payload == later[1]  # stored all the same: the pose is newer
     assert not step_requested(bridge, robot)
 
 
@@ -179,7 +179,7 @@ def test_a_stale_state_is_ignored(bridge: Bridge, robot: Robot, header_id: int, 
 
     bridge.handle([state_message(robot, header_id=header_id, at=at, order_id="late-n0-r0", node_states=[2])])
 
-    assert livestate.latest_state(robot.name) == current[1]
+    assert livestate.latest_state(robot.name).payload == current[1]
     assert not step_requested(bridge, robot)
 
 
@@ -191,7 +191,7 @@ def test_a_state_with_the_same_timestamp_and_a_higher_header_id_is_newer(
 
     bridge.handle([newer])
 
-    assert livestate.latest_state(robot.name) == newer[1]
+    assert livestate.latest_state(robot.name).payload == newer[1]
 
 
 def test_a_batch_keeps_the_newest_state_whatever_the_arrival_order(bridge: Bridge, robot: Robot) -> None:
@@ -201,7 +201,7 @@ def test_a_batch_keeps_the_newest_state_whatever_the_arrival_order(bridge: Bridg
         [state_message(robot, header_id=2, at=1.0), newest, state_message(robot, header_id=1, at=0.0)]
     )
 
-    assert livestate.latest_state(robot.name) == newest[1]
+    assert livestate.latest_state(robot.name).payload == newest[1]
 
 
 def test_a_stale_state_does_not_overwrite_the_status_written_to_the_database(
@@ -229,7 +229,9 @@ def test_states_are_stored_after_redis_lost_the_store_script_and_counted_once(
 
     bridge.handle(messages)
 
-    assert [livestate.latest_state(robot.name) for robot in robots] == [payload for _, payload in messages]
+    assert [livestate.latest_state(robot.name).payload for robot in robots] == [
+        payload for _, payload in messages
+    ]
     assert _counter(metrics.MESSAGES_IN, topic="state") == counted_before + 2
 
 
@@ -454,7 +456,7 @@ def test_a_factsheet_the_database_refuses_is_counted_and_the_rest_of_the_batch_i
 
     assert _counter(metrics.MESSAGES_INVALID, topic="factsheet") == invalid_before + 1
     assert _reload(robot).factsheet is None
-    assert livestate.latest_state(robot.name) == state[1]
+    assert livestate.latest_state(robot.name).payload == state[1]
     assert _reload(robot).online is True
 
 
@@ -491,7 +493,7 @@ def test_malformed_messages_are_counted_and_the_rest_of_the_batch_is_handled(
     )  # 3 payloads, 4-level topic
     assert _counter(metrics.MESSAGES_INVALID, topic="factsheet") - before["factsheet"] >= 1
     assert _counter(metrics.MESSAGES_INVALID, topic="unknown_robot") - before["unknown_robot"] >= 1
-    assert livestate.latest_state(robot.name) == good
+    assert livestate.latest_state(robot.name).payload == good
     assert _reload(robot).online is True
 
 

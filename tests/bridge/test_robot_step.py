@@ -246,7 +246,7 @@ def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_
     mission = Mission.objects.get(name="m1")
     assert (mission.state, mission.failure_category) == (MissionState.FAILED, FailureCategory.ROBOT_APP)
     assert not Robot.objects.filter(name=robot.name).exists()
-    assert livestate.latest_state(robot.name) is None
+    assert livestate.latest_state(robot.name).payload is None
     assert outcome.messages == []
 
 

@@ -7,10 +7,13 @@ from datetime import timedelta
 from django.conf import settings
 from django.utils import timezone
 
+from missions.dispatch import ORDER_ECHO
 from missions.models import Mission
-from missions.selectors import ORDER_ECHO_SECONDS, robots_due_for_step
+from missions.selectors import robots_due_for_step
+from missions.services import robot_step
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
+from vda5050.models import OrderContent
 from workers.bridge import Bridge
 
 RESEND_DUE = timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS + 1)
@@ -18,14 +21,21 @@ RESEND_DUE = timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS + 1)
 
 def after_the_order() -> float:
     """An arrival time (epoch s) by which a robot that got the order just sent would report holding it."""
-    return time.time() + ORDER_ECHO_SECONDS + 1
+    return time.time() + ORDER_ECHO.total_seconds() + 1
 
 
-def test_an_order_the_robot_has_not_taken_is_due_again(bridge: Bridge, robot: Robot) -> None:
-    running_order(bridge, robot)
+def orders_resent(robot: Robot) -> list[str]:
+    """The orderIds the robot's step sends once the resend period has passed."""
+    outcome = robot_step(name=robot.name, now=timezone.now() + RESEND_DUE)
+    return [m.content.order_id for m in outcome.messages if isinstance(m.content, OrderContent)]
+
+
+def test_an_order_the_robot_has_not_taken_is_due_again_and_sent_again(bridge: Bridge, robot: Robot) -> None:
+    order_id = running_order(bridge, robot)
     bridge.handle([state_message(robot, header_id=2, at=1.0)], received_at=after_the_order())
 
     assert robot.name in robots_due_for_step(now=timezone.now() + RESEND_DUE)
+    assert orders_resent(robot) == [order_id]
 
 
 def test_an_order_is_not_sent_again_before_a_state_says_the_robot_lacks_it(
@@ -35,9 +45,11 @@ def test_an_order_is_not_sent_again_before_a_state_says_the_robot_lacks_it(
     a bridge behind on a busy fleet looks like that, and resending would only add to its load."""
     running_order(bridge, robot)
     assert robot.name not in robots_due_for_step(now=timezone.now() + RESEND_DUE)
+    assert orders_resent(robot) == []  # nor does a step for another reason send it
 
     bridge.handle([state_message(robot, header_id=2, at=1.0)], received_at=time.time())
     assert robot.name not in robots_due_for_step(now=timezone.now() + RESEND_DUE)
+    assert orders_resent(robot) == []
 
 
 def test_an_order_the_robot_took_is_not_sent_again_before_its_state_is_stepped(

@@ -248,13 +248,16 @@ def checked_step(
     robot: dispatch.RobotView | None = None,
     actions: list[dispatch.ActionRecord] | None = None,
     now: datetime = NOW,
+    state_arrived_at: datetime | None = None,
     settings: dispatch.DispatchSettings = SETTINGS,
 ) -> dispatch.StepResult:
-    """`dispatch.step`, with every emitted message checked against both schema versions."""
+    """`dispatch.step`, with every emitted message checked against both schema versions. The state arrived
+    at `state_arrived_at`, by default just now."""
     result = dispatch.step(
         now=now,
         robot=robot or robot_view(),
         state=state,
+        state_arrived_at=state_arrived_at or now,
         mission=mission,
         actions=list(actions or []),
         settings=settings,
@@ -297,11 +300,19 @@ class Dispatcher:
     now: datetime = NOW
     results: list[dispatch.StepResult] = field(default_factory=list)
 
-    def step(self, state: State | None, *, after: float = 0.0) -> dispatch.StepResult:
-        """One step `after` seconds later than the previous one."""
+    def step(
+        self, state: State | None, *, after: float = 0.0, arrived_at: datetime | None = None
+    ) -> dispatch.StepResult:
+        """One step `after` seconds later than the previous one, of a state that arrived at `arrived_at`
+        (by default at the step)."""
         self.now += timedelta(seconds=after)
         result = checked_step(
-            state=state, mission=self.mission, robot=self.robot, actions=self.actions, now=self.now
+            state=state,
+            mission=self.mission,
+            robot=self.robot,
+            actions=self.actions,
+            now=self.now,
+            state_arrived_at=arrived_at,
         )
         self.mission = result.mission
         self.actions = [a for a in result.actions if a.status not in dispatch.FINAL]

@@ -2,7 +2,7 @@
 
 import pytest
 
-from missions import engine
+from missions import dispatch, engine
 from tests.dispatch.builders import (
     IDLE_STATE,
     SETTINGS,
@@ -48,6 +48,19 @@ def test_a_resent_order_is_not_resent_again_before_another_resend_period() -> No
     result = dispatcher.step(IDLE_STATE, after=2.0)
 
     assert result.messages == []
+
+
+def test_a_state_that_may_have_left_the_robot_before_the_order_reached_it_is_no_reason_to_resend() -> None:
+    """A bridge behind on a busy fleet stores states late: one that arrived within ORDER_ECHO of the order
+    says nothing about whether the robot got it, however late the step that reads it."""
+    dispatcher = started()
+    sent_at = dispatcher.mission.order_sent_at
+
+    late = dispatcher.step(IDLE_STATE, after=10.0, arrived_at=sent_at + dispatch.ORDER_ECHO / 2)
+    evidence = dispatcher.step(IDLE_STATE, after=0.0, arrived_at=sent_at + dispatch.ORDER_ECHO)
+
+    assert late.messages == []
+    assert orders_sent(evidence)
 
 
 def test_a_state_from_before_the_order_does_not_make_it_resend_early() -> None:

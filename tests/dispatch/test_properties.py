@@ -170,6 +170,7 @@ def test_a_step_never_mutates_its_inputs(scenario: Scenario) -> None:
         now=dispatcher.now + timedelta(seconds=after),
         robot=dispatcher.robot,
         state=state,
+        state_arrived_at=dispatcher.now + timedelta(seconds=after),
         mission=dispatcher.mission,
         actions=dispatcher.actions,
         settings=SETTINGS,

@@ -84,7 +84,7 @@ def test_duplicate_and_out_of_order_states_change_nothing(api, unique, recorder,
     first = post_mission(api, unique("first"), robot, [route("a", (1, 0)), route("b", (1, 1))])["name"]
     assert wait_mission(api, first)["status"]["state"] == "COMPLETED"
     topic = f"uagv/v2/RobotCompany/{robot}/state"
-    stored = orjson.loads(livestate.latest_state(robot))
+    stored = orjson.loads(livestate.latest_state(robot).payload)
     old = {
         **stored,
         "headerId": 0,
@@ -99,7 +99,7 @@ def test_duplicate_and_out_of_order_states_change_nothing(api, unique, recorder,
     assert wait_mission(api, second)["status"]["state"] == "COMPLETED"
     sends = orders_by_id(recorder, robot)
     assert sorted(sends.values()) == [1, 1, 1]  # each leaf's order sent exactly once
-    assert orjson.loads(livestate.latest_state(robot))["orderId"] != "stale"
+    assert orjson.loads(livestate.latest_state(robot).payload)["orderId"] != "stale"
 
 
 def test_malformed_messages_are_counted_and_do_not_stop_the_bridge(api, unique, publisher, simulated_robot):
