@@ -5,7 +5,6 @@ Invariant kept here: a PENDING mission never has needs_canceled set; canceling i
 engine only ever cancels RUNNING missions.
 """
 
-import json
 import logging
 from collections.abc import Mapping
 from contextlib import nullcontext
@@ -19,9 +18,9 @@ from django.conf import settings
 from django.db import IntegrityError, connection, transaction
 from django.db.models import JSONField
 from django.utils import timezone
-from psycopg.types.json import Jsonb
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
+from fleet.db import jsonb
 from missions import dispatch
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
@@ -224,19 +223,6 @@ MISSION_INSERT_FIELDS = tuple(name for name, field in MISSION_FIELDS.items() if 
 
 
 MISSION_JSON_FIELDS = frozenset(name for name, f in MISSION_FIELDS.items() if isinstance(f, JSONField))
-
-
-def jsonb(value: Any) -> Jsonb:
-    """`value` as a jsonb parameter, serialized by orjson: Django's adapter uses the json module, which
-    takes several times longer on a mission's tree and node status (the API's and the steps' hot paths)."""
-    return Jsonb(value, dumps=_json_bytes)
-
-
-def _json_bytes(value: Any) -> bytes:
-    try:
-        return orjson.dumps(value, option=orjson.OPT_NON_STR_KEYS)
-    except orjson.JSONEncodeError:  # what orjson refuses and json takes: integers beyond 64 bits
-        return json.dumps(value).encode()
 
 
 def _mission_db_values(values: Mapping[str, Any]) -> list[Any]:

@@ -25,9 +25,10 @@ import paho.mqtt.client as mqtt
 from django.conf import settings
 from django.db import DatabaseError, close_old_connections, connection, transaction
 
+from fleet.db import jsonb
 from missions.dispatch import StateDigest, state_digest, takes_order_only
 from missions.selectors import robots_with_missions
-from missions.services import jsonb, mission_orders_accepted
+from missions.services import mission_orders_accepted
 from robots.choices import AgvClass
 from robots.models import Robot
 from robots.services import robot_request_factsheet
