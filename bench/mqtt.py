@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import socket
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -59,7 +60,7 @@ class Connection:
         client.on_disconnect = self._on_disconnect
         client.on_subscribe = self._on_subscribe
         client.on_message = self._on_message
-        client.on_socket_open = lambda c, u, sock: self.loop.add_reader(sock, c.loop_read)
+        client.on_socket_open = self._on_socket_open
         client.on_socket_close = lambda c, u, sock: self.loop.remove_reader(sock)
         client.on_socket_register_write = lambda c, u, sock: self.loop.add_writer(sock, c.loop_write)
         client.on_socket_unregister_write = lambda c, u, sock: self.loop.remove_writer(sock)
@@ -108,6 +109,12 @@ class Connection:
             self.client.loop_misc()
 
     # --- paho callbacks (called from loop_read/loop_write, i.e. on the event loop) ----------------------
+
+    def _on_socket_open(self, client: mqtt.Client, userdata: Any, sock: Any) -> None:
+        """Read on the event loop; write each message at once (no Nagle wait behind an unacked one)."""
+        if isinstance(sock, socket.socket):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.loop.add_reader(sock, client.loop_read)
 
     def _on_connect(self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
         if reason.is_failure:
