@@ -195,7 +195,7 @@ BRIDGE_STATUS_FLUSH_SECONDS = env_float("FLEET_BRIDGE_FLUSH_SECONDS", 1.0)
 # MQTT shared-subscription group: several bridges with the same group split the robots' messages.
 BRIDGE_SHARE_GROUP = env_str("FLEET_BRIDGE_SHARE_GROUP", "")
 # Threads on which a bridge runs the steps its robots' states call for (each with a database connection).
-BRIDGE_STEP_THREADS = env_int("FLEET_BRIDGE_STEP_THREADS", 4)
+BRIDGE_STEP_THREADS = env_int("FLEET_BRIDGE_STEP_THREADS", 12)
 TELEMETRY_SENDER = env_str("FLEET_TELEMETRY_SENDER", "")
 
 # --- Celery queues and beat -----------------------------------------------------------------------

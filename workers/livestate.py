@@ -190,10 +190,11 @@ def header_key(name: str, topic: str) -> str:
     return f"{PREFIX}:header:{name}:{topic}"
 
 
-def next_header_ids(name: str, topics: list[str]) -> list[int]:
-    """VDA 5050 headerIds for messages about to be sent on `topics`, in one round trip: one counter per
-    robot and topic, +1 per message sent (resends included)."""
-    pipe = client().pipeline(transaction=False)
+def next_header_ids(name: str, topics: list[str], pipe: redis.client.Pipeline | None = None) -> list[int]:
+    """VDA 5050 headerIds for messages about to be sent on `topics`: one counter per robot and topic, +1 per
+    message sent (resends included). Runs `pipe` (or a new one) with them, in one round trip."""
+    pipe = pipe if pipe is not None else client().pipeline(transaction=False)
     for topic in topics:
         pipe.incr(header_key(name, topic))
-    return [int(value) - 1 for value in pipe.execute()]
+    results = pipe.execute()
+    return [int(value) - 1 for value in results[len(results) - len(topics) :]]

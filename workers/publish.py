@@ -20,14 +20,17 @@ def publish(
     messages: list[Outgoing],
     counters: redis.client.Pipeline,
 ) -> None:
-    """Send `messages`; their counts are queued on `counters` (the caller executes it)."""
+    """Send `messages`. Their headerIds are drawn in the round trip that also runs `counters` (the step's
+    metrics, with these messages' counts added), so a step talks to Redis once after its transaction."""
     if not messages:
+        counters.execute()
         return
     topics = [Topic.ORDER if isinstance(m.content, OrderContent) else Topic.INSTANT_ACTIONS for m in messages]
-    header_ids = livestate.next_header_ids(robot, topics)
+    for topic in topics:
+        metrics.count(metrics.MESSAGES_OUT, pipe=counters, topic=topic.value)
+    header_ids = livestate.next_header_ids(robot, topics, pipe=counters)
     now = datetime.now(UTC)
     for message, topic, header_id in zip(messages, topics, header_ids, strict=True):
         header = header_for(address, header_id=header_id, at=now)
         payload = encode(message.content, header, instant_actions_key=instant_actions_key)
         publisher().publish(topic_for(address, topic), payload)
-        metrics.count(metrics.MESSAGES_OUT, pipe=counters, topic=topic.value)

@@ -1,8 +1,12 @@
-"""The bridge's step threads (`workers.stepper.StepRunner`) against the real PostgreSQL, Redis and broker."""
+"""The bridge's step threads (`workers.stepper.StepRunner`, `StepProcess`) against the real PostgreSQL, Redis
+and broker."""
 
+import os
+import signal
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 from django.db import connection, transaction
@@ -14,7 +18,7 @@ from robots.models import Robot
 from tests.bridge.messages import worker_step_requested
 from tests.bridge.test_robot_step import put_state
 from workers import livestate, metrics, stepper
-from workers.stepper import StepRunner
+from workers.stepper import StepProcess, StepRunner
 
 MakeRobot = Callable[..., Robot]
 ROUTE = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
@@ -99,3 +103,74 @@ def test_a_failed_step_is_logged_and_handed_to_a_worker(
 
     assert worker_step_requested(robot)
     assert f"step of robot {robot.name} failed" in caplog.text
+
+
+def _wait_until_running(mission: str) -> bool:
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline:
+        if Mission.objects.get(name=mission).state == MissionState.RUNNING:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _robot_with_mission(make_robot: MakeRobot) -> tuple[Robot, Mission]:
+    robot = make_robot(prefix="runner")
+    Robot.objects.filter(name=robot.name).update(online=True)
+    put_state(robot, header_id=1)
+    mission = mission_create(name=None, prefix="runner", spec={"robot": robot.name, "mission_tree": [ROUTE]})
+    return robot, mission
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_step_process_runs_the_requested_steps_in_its_child(make_robot: MakeRobot) -> None:
+    robot, mission = _robot_with_mission(make_robot)
+    sent_before = _orders_sent()
+    steps = StepProcess(threads=2)
+    steps.start()
+    try:
+        assert steps.pid is not None and steps.pid != os.getpid()
+        steps.request([robot.name])
+        assert _wait_until_running(mission.name)
+    finally:
+        steps.close()
+    assert _orders_sent() == sent_before + 1
+    assert steps.pid is None
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_step_process_whose_child_died_is_started_again_with_a_step_for_every_robot_with_work(
+    make_robot: MakeRobot,
+) -> None:
+    _, mission = _robot_with_mission(make_robot)
+    steps = StepProcess(threads=1)
+    steps.start()
+    try:
+        first = steps.pid
+        assert first is not None
+        os.kill(first, signal.SIGKILL)
+        while Path(f"/proc/{first}/stat").read_text().split(") ")[1][0] != "Z":  # dead, not yet reaped
+            time.sleep(0.01)
+        steps.request([])  # nothing asked: the dead child goes unnoticed
+        assert steps.pid == first
+        other, _ = _robot_with_mission(make_robot)
+        Mission.objects.filter(robot=other.name).delete()
+
+        steps.request([other.name])  # a request for another robot restarts it, with the robot's step too
+
+        assert steps.pid not in (None, first)
+        assert _wait_until_running(mission.name)
+    finally:
+        steps.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_step_process_ends_when_the_bridge_is_gone(make_robot: MakeRobot) -> None:
+    steps = StepProcess(threads=1)
+    steps.start()
+    pid = steps.pid
+    assert pid is not None
+    steps.close()  # what the bridge's exit does to the pipe
+
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)  # joined: it exited and was reaped

@@ -4,6 +4,7 @@ from django.conf import settings
 from django.core.management.base import BaseCommand, CommandParser
 
 from workers.bridge import Bridge
+from workers.stepper import StepProcess
 
 
 class Command(BaseCommand):
@@ -17,4 +18,8 @@ class Command(BaseCommand):
         )
 
     def handle(self, *args: Any, share_group: str, **options: Any) -> None:
-        Bridge(share_group=share_group).run_forever()
+        steps = StepProcess(threads=settings.BRIDGE_STEP_THREADS)
+        try:
+            Bridge(share_group=share_group, steps=steps).run_forever()
+        finally:
+            steps.close()
