@@ -1,7 +1,8 @@
 """`make bench`: start a Mission Dispatch stack of its own, run the benchmark runs, write the report.
 
-The stack uses its own database (`mission_dispatch_bench`), Redis database and API port, so it never
-mixes with `make run`; its processes are those of `deploy/Procfile` (no simulator), with `--bridges`
+The stack uses its own database (`mission_dispatch_bench`), Redis database, API port and Mosquitto broker
+(`deploy/mosquitto.conf`'s settings on port 1884), so it never mixes with `make run`; its processes are
+those of `deploy/Procfile` (no simulator), with `--bridges`
 bridges (sharing the robots' messages through an MQTT shared subscription) and `--workers` step-worker
 processes. What a second bridge and worker bring on a machine with more cores: the `scale` suite once per
 layout into one directory, whose `latest.md` then compares them (runs are labelled by layout;
@@ -33,10 +34,13 @@ RESULTS = ROOT / "bench" / "results"  # make bench's results; their report is be
 VENV_BIN = Path(sys.executable).parent
 CELERY = str(VENV_BIN / "celery")
 API_PORT = 5100
+BROKER_PORT = 1884
+BROKER_CONFIG = ROOT / "deploy" / "mosquitto.conf"
 STACK_ENV = {
     "FLEET_DB_NAME": "mission_dispatch_bench",
     "FLEET_REDIS_URL": "redis://127.0.0.1:6379/3",
     "FLEET_API_PORT": str(API_PORT),
+    "FLEET_MQTT_PORT": str(BROKER_PORT),
     "FLEET_LOG_LEVEL": "WARNING",
 }
 # name -> bench.fleet arguments; "quick" is what CI can afford, "full" what bench/README.md reports.
@@ -83,8 +87,24 @@ SUITES = {
     },
 }
 SUITES["idle"] = {"idle-n2000": SUITES["full"]["idle-n2000"]}
+# A few minutes' look at the headline figures while working on them: the full suite's runs, shorter.
+SUITES["short"] = {
+    "saturation-n100": ["--nodes", "1", "--robots", "100", "--duration", "30", "--warmup", "10"],
+    "realistic-n1000": [*SUITES["full"]["realistic-n1000"][:8], "--duration", "60", "--warmup", "20"],
+}
 # The saturation runs alone, to compare layouts (--bridges, --workers).
 SUITES["scale"] = {label: SUITES["full"][label] for label in ("saturation-n100", "saturation-n500")}
+
+
+# bench.fleet's options for this stack: its API and broker (the machine's own broker is not measured).
+CLIENT_ARGS = [
+    "--base-url",
+    f"http://127.0.0.1:{API_PORT}",
+    "--mqtt-port",
+    str(BROKER_PORT),
+    "--proc",
+    f"broker=mosquitto .*-p {BROKER_PORT}",
+]
 
 
 def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
@@ -93,6 +113,7 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
     another stack on the same broker never takes their messages."""
     share = ["--share-group", f"bench-{uuid.uuid4().hex[:8]}"] if bridges > 1 else []
     return {
+        "broker": ["mosquitto", "-c", str(BROKER_CONFIG), "-p", str(BROKER_PORT)],
         "api": [
             str(VENV_BIN / "gunicorn"),
             "fleet.wsgi",
@@ -109,10 +130,10 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
             for i in range(bridges)
         },
         **{
-            _numbered("worker", i, workers): _worker("steps", f"bench-{_numbered('steps', i, workers)}")
+            _numbered("worker", i, workers): _worker("steps", f"bench-{_numbered('steps', i, workers)}", 12)
             for i in range(workers)
         },
-        "notify": _worker("notify", "bench-notify"),
+        "notify": _worker("notify", "bench-notify", 8),
         "beat": [CELERY, "-A", "fleet", "beat", "--schedule", "/tmp/mission-dispatch-bench-beat"],
     }
 
@@ -122,8 +143,8 @@ def _numbered(name: str, index: int, count: int) -> str:
     return name if count == 1 else f"{name}-{index + 1}"
 
 
-def _worker(queue: str, node: str) -> list[str]:
-    """A Celery worker of `queue` on 4 threads, named `node` on this host."""
+def _worker(queue: str, node: str, threads: int) -> list[str]:
+    """A Celery worker of `queue` on `threads` threads, named `node` on this host."""
     return [
         CELERY,
         "-A",
@@ -134,7 +155,7 @@ def _worker(queue: str, node: str) -> list[str]:
         "--pool",
         "threads",
         "--concurrency",
-        "4",
+        str(threads),
         "--without-gossip",
         "--without-mingle",
         "-n",
@@ -218,7 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="directory for the runs' results and, unless it is the default, their latest.md and .png",
     )
     parser.add_argument("--bridges", type=int, default=1, help="bridge processes (one shared subscription)")
-    parser.add_argument("--workers", type=int, default=1, help="step-worker processes (4 threads each)")
+    parser.add_argument("--workers", type=int, default=1, help="step-worker processes (12 threads each)")
     args = parser.parse_args(argv)
     if args.bridges < 1 or args.workers < 1:
         parser.error("--bridges and --workers must be at least 1")
@@ -231,8 +252,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"--- {name}", flush=True)
             fleet.main(
                 [
-                    "--base-url",
-                    f"http://127.0.0.1:{API_PORT}",
+                    *CLIENT_ARGS,
                     "--label",
                     label,
                     "--output",
