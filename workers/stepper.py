@@ -1,9 +1,10 @@
 """Running dispatch steps: one step with what it sends (`run_step`), and the bridge's step threads.
 
-The API and beat request steps through Celery (`workers.steps`); the bridge runs the steps its robots'
-states call for on threads of its own (`StepRunner`), in a child process (`StepProcess`), which spares
-every state a Celery round trip. Either way a step takes the robot's row lock, so steps of one robot never
-interleave, and it reads the robot's latest stored state, so a duplicate or late step finds nothing to do.
+The bridge runs the steps its robots' states call for on threads of its own (`StepRunner`), in a child
+process (`StepProcess`), which spares every state a Celery round trip; those threads also take the steps
+the API and beat request (`workers.steps`), which go to Celery workers while no bridge listens. Either
+way a step takes the robot's row lock, so steps of one robot never interleave, and it reads the robot's
+latest stored state, so a duplicate or late step finds nothing to do.
 """
 
 import logging
@@ -14,6 +15,7 @@ import time
 from collections.abc import Iterable
 from multiprocessing.connection import Connection
 
+import redis
 from django.conf import settings
 from django.db import close_old_connections, connections
 
@@ -21,7 +23,7 @@ from missions.selectors import robots_with_missions
 from missions.services import robot_step
 from workers import livestate, metrics
 from workers.publish import publish
-from workers.steps import request_steps
+from workers.steps import request_steps, take_requested
 
 logger = logging.getLogger(__name__)
 
@@ -103,13 +105,26 @@ class StepRunner:
             run_step(name, requested_at=at)
         except Exception:  # one robot's failed step must not stop the others'; a worker tries it again
             logger.exception("step of robot %s failed; handing it to a worker", name)
-            request_steps([name], at=at)
+            request_steps([name], at=at, worker=True)
         return name
 
     def _run_forever(self) -> None:
         while True:
             close_old_connections()  # a connection broken by the last step is replaced, not reused
             self.run_next()
+
+    def listen(self) -> None:
+        """Also run the steps requested through Redis (`workers.steps`): the API's and beat's."""
+        threading.Thread(target=self._take_requested_forever, name="step-requests", daemon=True).start()
+
+    def _take_requested_forever(self) -> None:
+        while True:
+            try:
+                for name, at in take_requested():
+                    self.request([name], at=at)
+            except redis.RedisError:  # Redis away for a moment: Celery workers take the requests meanwhile
+                logger.exception("taking requested steps failed; going on in 1 s")
+                time.sleep(1)
 
 
 class StepProcess:
@@ -176,6 +191,7 @@ def _serve_steps(receiver: Connection, sender: Connection, threads: int) -> None
     sender.close()  # only the bridge holds the sending end, so its exit ends `recv` below
     runner = StepRunner(threads)
     runner.start()
+    runner.listen()
     while True:
         try:
             names, at = receiver.recv()
