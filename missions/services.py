@@ -386,19 +386,31 @@ ACCEPT_ORDER_SQL = f"""
     WHERE robot = %s AND state = '{MissionState.RUNNING}' AND NOT order_accepted
       AND "order"->>'orderId' = %s AND ("order"->>'orderUpdateId')::bigint <= %s
 """
+# The running missions of these robots that no one else holds: a step or a service holding one is not waited
+# for (its robot's acceptance is dropped).
+UNLOCKED_RUNNING_SQL = f"""
+    SELECT robot FROM {Mission._meta.db_table}
+    WHERE robot = ANY(%s) AND state = '{MissionState.RUNNING}' AND NOT order_accepted
+    FOR NO KEY UPDATE SKIP LOCKED
+"""
 
 
 def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
     """Mark accepted the running missions' orders that robots took: robot -> (orderId, orderUpdateId).
 
-    One statement per robot in a single round trip and a single commit, in robot-name order so that two
-    bridges' writes never deadlock. An order that is not the mission's current one (a later update is
+    Two statements in one transaction, whatever the number of robots. A mission a step holds is skipped,
+    not waited for: waiting, the flush held the rows it had locked, and the steps of those robots queued
+    behind the step it waited for. A skipped acceptance costs nothing: the sweep resends an order only on
+    a state that does not hold it. An order that is not the mission's current one (a later update is
     already out, or the order came from elsewhere) matches nothing.
     """
     now = timezone.now()
-    rows = [(now, robot, order_id, update_id) for robot, (order_id, update_id) in sorted(orders.items())]
     with transaction.atomic(), connection.cursor() as cursor:
-        cursor.executemany(ACCEPT_ORDER_SQL, rows)
+        cursor.execute(UNLOCKED_RUNNING_SQL, [list(orders)])
+        unlocked = [robot for (robot,) in cursor.fetchall()]
+        rows = [(now, robot, *orders[robot]) for robot in unlocked]
+        if rows:
+            cursor.executemany(ACCEPT_ORDER_SQL, rows)
 
 
 def _current_missions(robot: str, *, count: int) -> list[dispatch.MissionRecord]:

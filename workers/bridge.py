@@ -17,7 +17,6 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from operator import itemgetter
 from typing import Any
 
 import orjson
@@ -331,27 +330,47 @@ class Bridge:
             groups.setdefault(columns, []).append((*values, name))
         self._last_flush = now
         for columns, rows in groups.items():
-            # Every bridge locks the robots' rows in name order, so two bridges' flushes never deadlock.
-            rows.sort(key=itemgetter(-1))
             try:
-                _write_status(columns, rows)
+                skipped = _write_status(columns, rows)
             except DatabaseError:
                 # One robot's value the database refuses (a NUL in an error text, say) must not hold back
                 # the others': row by row, dropping what fails (rewritten once it changes).
                 logger.warning("status flush of %d robots failed; writing them one by one", len(rows))
+                skipped = set()
                 for row in rows:
                     try:
-                        _write_status(columns, [row])
+                        skipped |= _write_status(columns, [row])
                     except DatabaseError:
                         logger.exception("status of robot %s not written", row[-1])
                         metrics.count(metrics.STATUS_WRITES_FAILED)
+            for name in skipped:  # written in full by the next flush
+                status = self.status[name]
+                status.pending, status.written, status.written_at = status.written, {}, 0.0
 
 
-def _write_status(columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> None:
-    """One round trip and one commit (in autocommit each row would wait for its own WAL flush)."""
+ROBOTS_SQL = "SELECT name FROM robots_robot WHERE name = ANY(%s)"
+
+
+def _write_status(columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> set[str]:
+    """Write the rows (values, then the robot's name) of the robots no one else holds; the names skipped.
+
+    A robot a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and the
+    steps of those robots queued behind the step it waited for (and two bridges' flushes never deadlock).
+    One round trip for the lock, one for the writes, one commit (in autocommit each row would wait for its
+    own WAL flush); one more read when some were skipped.
+    """
     assignments = ", ".join(f"{column} = %s" for column in columns)
+    names = [row[-1] for row in rows]
     with transaction.atomic(), connection.cursor() as cursor:
-        cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", rows)
+        cursor.execute(f"{ROBOTS_SQL} FOR NO KEY UPDATE SKIP LOCKED", [names])
+        unlocked = {name for (name,) in cursor.fetchall()}
+        if unlocked:
+            writes = [row for row in rows if row[-1] in unlocked]
+            cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", writes)
+        if len(unlocked) == len(names):
+            return set()
+        cursor.execute(ROBOTS_SQL, [[name for name in names if name not in unlocked]])
+        return {name for (name,) in cursor.fetchall()}  # held by others; deleted robots are not skipped
 
 
 def _timestamp_ms(timestamp: str) -> int:

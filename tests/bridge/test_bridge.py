@@ -3,9 +3,12 @@ to `Bridge.handle` as the processing thread would)."""
 
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
 
 import orjson
+import psycopg
 import pytest
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
@@ -295,14 +298,16 @@ def test_user_info_becomes_the_robots_info_messages(bridge: Bridge, robot: Robot
     assert _reload(robot).info_messages == {"shelf": 4}
 
 
-def test_one_flush_writes_all_changed_robots_in_one_statement(bridge: Bridge, make_robot: MakeRobot) -> None:
-    robots = [make_robot(), make_robot()]
+def test_one_flush_locks_and_writes_all_changed_robots_in_two_statements(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    robots = [make_robot(), make_robot(), make_robot()]
     bridge.directory.reload()
     bridge.handle([state_message(r, battery=30.0 + i) for i, r in enumerate(robots)])
 
-    assert len(_flush_statements(bridge)) == 1
+    assert len(_flush_statements(bridge)) == 2
 
-    assert [_reload(r).battery_level for r in robots] == [30.0, 31.0]
+    assert [_reload(r).battery_level for r in robots] == [30.0, 31.0, 32.0]
 
 
 def test_a_flush_with_nothing_changed_writes_nothing(
@@ -329,7 +334,7 @@ def test_a_flush_writes_only_the_robots_that_changed(bridge: Bridge, make_robot:
             state_message(parked, header_id=2, at=1.0),
         ]
     )
-    assert len(_flush_statements(bridge)) == 1
+    assert len(_flush_statements(bridge)) == 2
 
     assert (_reload(moving).pose_x, _reload(parked).battery_level) == (9.0, -1.0)
 
@@ -519,3 +524,67 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
     assert [_reload(r).online for r in (silent, talking, unheard)] == [False, True, False]
     assert not livestate.client().sismember(livestate.ONLINE_SET, silent.name)
     assert [worker_step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]
+
+
+@contextmanager
+def held(sql: str, params: list[Any]) -> Iterator[None]:
+    """`sql` (a locking read) run and its locks held by another connection, as a step holds its rows."""
+    other = psycopg.connect(host="127.0.0.1", dbname=connection.settings_dict["NAME"], user="postgres")
+    with connection.cursor() as cursor:
+        cursor.execute("SET lock_timeout = '2s'")  # a flush that waits fails the test instead of hanging it
+    try:
+        other.execute(sql, params)
+        yield
+    finally:
+        other.rollback()
+        other.close()
+        with connection.cursor() as cursor:
+            cursor.execute("RESET lock_timeout")
+
+
+@pytest.mark.django_db(transaction=True)  # the other connection sees the robots only once they are committed
+def test_a_robot_a_step_holds_is_skipped_by_the_flush_and_written_by_the_next(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    busy, free = make_robot(), make_robot()
+    bridge.directory.reload()
+    bridge.handle([state_message(busy, battery=21.0), state_message(free, battery=22.0)])
+
+    with held("SELECT 1 FROM robots_robot WHERE name = %s FOR UPDATE", [busy.name]):
+        started = time.monotonic()
+        bridge.flush()
+        assert time.monotonic() - started < 1
+    assert (_reload(busy).battery_level, _reload(free).battery_level) == (0.0, 22.0)
+
+    bridge.flush()
+
+    assert _reload(busy).battery_level == 21.0
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_deleted_robot_is_not_written_again_and_again(bridge: Bridge, make_robot: MakeRobot) -> None:
+    gone = make_robot()
+    bridge.directory.reload()
+    bridge.handle([state_message(gone, battery=21.0)])
+    Robot.objects.filter(name=gone.name).delete()
+
+    bridge.flush()
+
+    with CaptureQueriesContext(connection) as queries:
+        bridge.flush()
+    assert len(queries) == 0
+
+
+@pytest.mark.django_db(transaction=True)
+def test_an_order_acceptance_of_a_mission_a_step_holds_is_dropped_without_waiting(
+    bridge: Bridge, robot: Robot
+) -> None:
+    order_id = running_order(bridge, robot)
+    bridge.handle([state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])])
+
+    with held("SELECT 1 FROM missions_mission WHERE robot = %s FOR UPDATE", [robot.name]):
+        started = time.monotonic()
+        bridge.flush()
+        assert time.monotonic() - started < 1
+
+    assert not Mission.objects.get(robot=robot.name).order_accepted
