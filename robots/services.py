@@ -1,12 +1,13 @@
 """Changes to robots. Each runs in one transaction, locks the row it changes, and wakes the dispatch engine
-for the robot (after commit) so that the engine reacts to the change."""
+for the robot (after commit) so that the engine reacts to the change; the bridge's status write wakes
+nothing (the engine reads the robot's live state from Redis, not these columns)."""
 
 import time
 from collections.abc import Mapping
 from typing import Any
 
 from django.conf import settings
-from django.db import IntegrityError, transaction
+from django.db import IntegrityError, connection, transaction
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
 from missions.choices import MissionState
@@ -123,6 +124,32 @@ def robot_check_heartbeats(*, now: float | None = None) -> list[str]:
             livestate.mark_offline(name)
         request_steps(silent)
     return silent
+
+
+ROBOTS_BY_NAME_SQL = f"SELECT name FROM {Robot._meta.db_table} WHERE name = ANY(%s)"
+
+
+def robot_status_write(*, columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> set[str]:
+    """The bridge's status flush: write `columns` of each row's robot (the values, then the robot's name)
+    unless another transaction holds the robot; returns the robots skipped that way.
+
+    A robot a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
+    the steps of those robots queued behind the step it waited for (and two bridges' flushes never
+    deadlock). One round trip for the lock, one for the writes, one commit (in autocommit each row would
+    wait for its own WAL flush); one more read when some were skipped. Deleted robots are not skipped.
+    """
+    assignments = ", ".join(f"{column} = %s" for column in columns)
+    names = [row[-1] for row in rows]
+    with transaction.atomic(), connection.cursor() as cursor:
+        cursor.execute(f"{ROBOTS_BY_NAME_SQL} FOR NO KEY UPDATE SKIP LOCKED", [names])
+        unlocked = {name for (name,) in cursor.fetchall()}
+        if unlocked:
+            writes = [row for row in rows if row[-1] in unlocked]
+            cursor.executemany(f"UPDATE {Robot._meta.db_table} SET {assignments} WHERE name = %s", writes)
+        if len(unlocked) == len(names):
+            return set()
+        cursor.execute(ROBOTS_BY_NAME_SQL, [[name for name in names if name not in unlocked]])
+        return {name for (name,) in cursor.fetchall()}
 
 
 def _queue_instant_action(robot: Robot, action_type: str) -> InstantAction:

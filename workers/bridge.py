@@ -22,7 +22,7 @@ from typing import Any
 import orjson
 import paho.mqtt.client as mqtt
 from django.conf import settings
-from django.db import DatabaseError, close_old_connections, connection, transaction
+from django.db import DatabaseError, close_old_connections
 
 from fleet.db import jsonb
 from missions.dispatch import StateDigest, state_digest, takes_order_only
@@ -30,7 +30,7 @@ from missions.selectors import robots_with_missions
 from missions.services import mission_orders_accepted
 from robots.choices import AgvClass
 from robots.models import Robot
-from robots.services import robot_request_factsheet
+from robots.services import robot_request_factsheet, robot_status_write
 from vda5050.codec import parse_connection, parse_factsheet, parse_state, parse_visualization
 from vda5050.errors import ProtocolError
 from vda5050.models import ConnectionState, State
@@ -331,7 +331,7 @@ class Bridge:
         self._last_flush = now
         for columns, rows in groups.items():
             try:
-                skipped = _write_status(columns, rows)
+                skipped = robot_status_write(columns=columns, rows=rows)
             except DatabaseError:
                 # One robot's value the database refuses (a NUL in an error text, say) must not hold back
                 # the others': row by row, dropping what fails (rewritten once it changes).
@@ -339,38 +339,13 @@ class Bridge:
                 skipped = set()
                 for row in rows:
                     try:
-                        skipped |= _write_status(columns, [row])
+                        skipped |= robot_status_write(columns=columns, rows=[row])
                     except DatabaseError:
                         logger.exception("status of robot %s not written", row[-1])
                         metrics.count(metrics.STATUS_WRITES_FAILED)
             for name in skipped:  # written in full by the next flush
                 status = self.status[name]
                 status.pending, status.written, status.written_at = status.written, {}, 0.0
-
-
-ROBOTS_SQL = "SELECT name FROM robots_robot WHERE name = ANY(%s)"
-
-
-def _write_status(columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> set[str]:
-    """Write the rows (values, then the robot's name) of the robots no one else holds; the names skipped.
-
-    A robot a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and the
-    steps of those robots queued behind the step it waited for (and two bridges' flushes never deadlock).
-    One round trip for the lock, one for the writes, one commit (in autocommit each row would wait for its
-    own WAL flush); one more read when some were skipped.
-    """
-    assignments = ", ".join(f"{column} = %s" for column in columns)
-    names = [row[-1] for row in rows]
-    with transaction.atomic(), connection.cursor() as cursor:
-        cursor.execute(f"{ROBOTS_SQL} FOR NO KEY UPDATE SKIP LOCKED", [names])
-        unlocked = {name for (name,) in cursor.fetchall()}
-        if unlocked:
-            writes = [row for row in rows if row[-1] in unlocked]
-            cursor.executemany(f"UPDATE robots_robot SET {assignments} WHERE name = %s", writes)
-        if len(unlocked) == len(names):
-            return set()
-        cursor.execute(ROBOTS_SQL, [[name for name in names if name not in unlocked]])
-        return {name for (name,) in cursor.fetchall()}  # held by others; deleted robots are not skipped
 
 
 def _timestamp_ms(timestamp: str) -> int:
