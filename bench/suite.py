@@ -43,54 +43,31 @@ STACK_ENV = {
     "FLEET_MQTT_PORT": str(BROKER_PORT),
     "FLEET_LOG_LEVEL": "WARNING",
 }
+# The fleets the suites run (bench.fleet arguments without the measurement window). As in the issue's
+# comparison with the reference: one route node per mission, queue depth 2, 1 Hz state. The realistic
+# runs' start phase posts at the rate robots finish orders (N / delay), as robots fall idle in a working
+# fleet.
+SATURATION_N100 = ["--nodes", "1", "--robots", "100"]
+REALISTIC_N1000 = ["--nodes", "1", "--robots", "1000", "--delay", "5", "--start-rate", "200"]
+REALISTIC_N2000 = ["--nodes", "1", "--robots", "2000", "--delay", "10", "--start-rate", "200"]
 # name -> bench.fleet arguments; "quick" is what CI can afford, "full" what bench/README.md reports.
-# As in the issue's comparison with the reference: one route node per mission, queue depth 2, 1 Hz state.
 SUITES = {
     "quick": {"saturation-n10": ["--nodes", "1", "--robots", "10", "--duration", "10", "--warmup", "3"]},
     "full": {
         # Idle first: after a saturated run a stack is still working off its backlog.
         "idle-n2000": ["--mode", "idle", "--robots", "2000", "--duration", "60", "--warmup", "60"],
-        "saturation-n100": ["--nodes", "1", "--robots", "100", "--duration", "60", "--warmup", "10"],
+        "saturation-n100": [*SATURATION_N100, "--duration", "60", "--warmup", "10"],
         "saturation-n500": ["--nodes", "1", "--robots", "500", "--duration", "60", "--warmup", "20"],
-        # 30 minutes in 1-minute slices: latency flat over any 5 minutes, and memory flat over 30. The start
-        # phase posts at the rate robots finish orders (N / delay), as robots fall idle in a working fleet.
-        "realistic-n1000": [
-            "--nodes",
-            "1",
-            "--robots",
-            "1000",
-            "--delay",
-            "5",
-            "--start-rate",
-            "200",
-            "--duration",
-            "1800",
-            "--warmup",
-            "30",
-            "--sample-every",
-            "60",
-        ],
-        "realistic-n2000": [
-            "--nodes",
-            "1",
-            "--robots",
-            "2000",
-            "--delay",
-            "10",
-            "--start-rate",
-            "200",
-            "--duration",
-            "300",
-            "--warmup",
-            "40",
-        ],
+        # 30 minutes in 1-minute slices: latency flat over any 5 minutes, and memory flat over 30.
+        "realistic-n1000": [*REALISTIC_N1000, "--duration", "1800", "--warmup", "30", "--sample-every", "60"],
+        "realistic-n2000": [*REALISTIC_N2000, "--duration", "300", "--warmup", "40"],
     },
 }
 SUITES["idle"] = {"idle-n2000": SUITES["full"]["idle-n2000"]}
 # A few minutes' look at the headline figures while working on them: the full suite's runs, shorter.
 SUITES["short"] = {
-    "saturation-n100": ["--nodes", "1", "--robots", "100", "--duration", "30", "--warmup", "10"],
-    "realistic-n1000": [*SUITES["full"]["realistic-n1000"][:8], "--duration", "60", "--warmup", "20"],
+    "saturation-n100": [*SATURATION_N100, "--duration", "30", "--warmup", "10"],
+    "realistic-n1000": [*REALISTIC_N1000, "--duration", "60", "--warmup", "20"],
 }
 # The saturation runs alone, to compare layouts (--bridges, --workers).
 SUITES["scale"] = {label: SUITES["full"][label] for label in ("saturation-n100", "saturation-n500")}

@@ -52,7 +52,7 @@ def run_step(name: str, *, requested_at: float | None = None) -> None:
             messages=outcome.messages,
             counters=counters,
         )
-    elif len(counters):
+    else:  # the robot is gone: nothing to send
         counters.execute()
     if outcome.notifies:
         from workers.tasks import run_notify  # tasks import this module
@@ -133,8 +133,10 @@ class StepProcess:
     In the bridge's own process the step threads waited for the interpreter lock after every round trip,
     behind the thread that parses ~1,000 messages/s: a step of 2 ms of CPU took ~15 ms and the steps queued
     (step latency p50 110 ms at 1,000 robots). A child of its own runs them without that wait. The child is
-    forked before the bridge starts any thread or connection, ends when the bridge's end of the pipe
-    closes (the bridge exited or was killed), and is started again if it dies.
+    forked before the bridge starts any thread or connection (a restart forks the running bridge: only the
+    forking thread lives on in the child, and redis-py and logging reset their locks and pools after a
+    fork), ends when the bridge's end of the pipe closes (the bridge exited or was killed), and is started
+    again if it dies.
     """
 
     def __init__(self, threads: int) -> None:
