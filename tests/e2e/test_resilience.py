@@ -5,6 +5,7 @@ import signal
 import subprocess
 import time
 from collections import Counter
+from contextlib import suppress
 from pathlib import Path
 
 import orjson
@@ -154,4 +155,7 @@ def test_a_bridge_killed_alone_leaves_no_step_process_behind(stack):
     try:
         wait_for(lambda: not any(map(_alive, step_processes)), message="its step process to exit")
     finally:
+        for child in step_processes:  # a step process left behind would go on taking this suite's steps
+            with suppress(ProcessLookupError):
+                os.kill(child, signal.SIGKILL)
         bridge.start()
