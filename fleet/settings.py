@@ -194,8 +194,10 @@ NOTIFY_BACKOFF_SECONDS = env_float("FLEET_NOTIFY_BACKOFF_SECONDS", 1.0)
 BRIDGE_STATUS_FLUSH_SECONDS = env_float("FLEET_BRIDGE_FLUSH_SECONDS", 1.0)
 # MQTT shared-subscription group: several bridges with the same group split the robots' messages.
 BRIDGE_SHARE_GROUP = env_str("FLEET_BRIDGE_SHARE_GROUP", "")
-# Threads on which a bridge runs the steps its robots' states call for (each with a database connection).
-BRIDGE_STEP_THREADS = env_int("FLEET_BRIDGE_STEP_THREADS", 12)
+# Processes on which a bridge runs the steps its robots' states call for, and threads in each (each thread
+# with a database connection).
+BRIDGE_STEP_PROCESSES = env_int("FLEET_BRIDGE_STEP_PROCESSES", 2)
+BRIDGE_STEP_THREADS = env_int("FLEET_BRIDGE_STEP_THREADS", 6)
 TELEMETRY_SENDER = env_str("FLEET_TELEMETRY_SENDER", "")
 
 # --- Celery queues and beat -----------------------------------------------------------------------

@@ -4,8 +4,8 @@ Per state message it costs one parse and one pipelined Redis script call; the da
 UPDATE per flush period for the robots whose status changed, and a step runs only when something the
 engine cares about changed (`missions.dispatch.state_digest`). A robot that only took the order its last
 step sent needs no step either (`missions.dispatch.takes_order_only`): the flush marks the order accepted,
-so that the sweep does not send it again. The bridge runs the steps itself, on threads of a child process
-(`workers.stepper.StepProcess`): a Celery round trip per state would cost more than the step. Several
+so that the sweep does not send it again. The bridge runs the steps itself, on threads of its child processes
+(`workers.stepper.StepProcesses`): a Celery round trip per state would cost more than the step. Several
 bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
@@ -38,7 +38,7 @@ from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_versi
 from vda5050.topics import shared_subscription as shared_filter
 from workers import livestate, metrics
 from workers.mqtt import new_client
-from workers.stepper import StepProcess, StepRunner
+from workers.stepper import StepProcesses, StepRunner
 
 logger = logging.getLogger(__name__)
 
@@ -97,7 +97,7 @@ class RobotDirectory:
 
 
 class Bridge:
-    def __init__(self, share_group: str = "", steps: StepRunner | StepProcess | None = None) -> None:
+    def __init__(self, share_group: str = "", steps: StepRunner | StepProcesses | None = None) -> None:
         self.share_group = share_group
         self.inbox: queue.SimpleQueue[tuple[str, bytes, float]] = (
             queue.SimpleQueue()

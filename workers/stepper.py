@@ -12,6 +12,7 @@ import multiprocessing
 import queue
 import threading
 import time
+import zlib
 from collections.abc import Iterable
 from multiprocessing.connection import Connection
 
@@ -147,8 +148,9 @@ class StepProcess:
     def start(self) -> None:
         connections.close_all()  # a forked child must not share the parent's database connections
         receiver, sender = multiprocessing.get_context("fork").Pipe(duplex=False)
+        _senders.add(sender)
         self._process = multiprocessing.get_context("fork").Process(
-            target=_serve_steps, args=(receiver, sender, self.threads), name="bridge-steps", daemon=True
+            target=_serve_steps, args=(receiver, self.threads), name="bridge-steps", daemon=True
         )
         self._process.start()
         receiver.close()
@@ -176,6 +178,7 @@ class StepProcess:
     def close(self) -> None:
         """Close the pipe, which ends the child (a step it is running is rolled back), and wait for it."""
         if self._sender is not None:
+            _senders.discard(self._sender)
             self._sender.close()
             self._sender = None
         if self._process is not None:
@@ -188,9 +191,15 @@ class StepProcess:
         return None if self._process is None else self._process.pid
 
 
-def _serve_steps(receiver: Connection, sender: Connection, threads: int) -> None:
+# The sending ends of this process's step-process pipes. A child inherits every one open when it is forked
+# and closes them all: only the bridge may hold them, or a pipe would outlive it and its child never end.
+_senders: set[Connection] = set()
+
+
+def _serve_steps(receiver: Connection, threads: int) -> None:
     """The child's main thread: requests off the pipe into the step threads, until the bridge is gone."""
-    sender.close()  # only the bridge holds the sending end, so its exit ends `recv` below
+    for sender in _senders:
+        sender.close()  # only the bridge holds the sending ends, so its exit ends `recv` below
     runner = StepRunner(threads)
     runner.start()
     runner.listen()
@@ -200,3 +209,33 @@ def _serve_steps(receiver: Connection, sender: Connection, threads: int) -> None
         except EOFError:
             return
         runner.request(names, at=at)
+
+
+class StepProcesses:
+    """Several `StepProcess` children, so that the steps of a busy fleet are not limited to the one core
+    that a process's interpreter lock allows. A robot's steps always go to the same child, whose queue
+    holds at most one step per robot; a restarted child steps every robot with work once, the others'
+    too (harmless: a robot's steps serialize on its row lock).
+    """
+
+    def __init__(self, processes: int, threads: int) -> None:
+        self.children = [StepProcess(threads) for _ in range(processes)]
+
+    def start(self) -> None:
+        for child in self.children:
+            child.start()
+
+    def request(self, names: Iterable[str], *, at: float | None = None) -> None:
+        """Queue a step for each robot in its child; `at` is when the cause happened (epoch s)."""
+        by_child: dict[StepProcess, list[str]] = {}
+        for name in names:
+            by_child.setdefault(self.child_of(name), []).append(name)
+        for child, group in by_child.items():
+            child.request(group, at=at)
+
+    def child_of(self, name: str) -> StepProcess:
+        return self.children[zlib.crc32(name.encode()) % len(self.children)]
+
+    def close(self) -> None:
+        for child in self.children:
+            child.close()

@@ -1,5 +1,5 @@
-"""The bridge's step threads (`workers.stepper.StepRunner`, `StepProcess`) against the real PostgreSQL, Redis
-and broker."""
+"""The bridge's step threads (`workers.stepper.StepRunner`, `StepProcess`, `StepProcesses`) against the real
+PostgreSQL, Redis and broker."""
 
 import os
 import signal
@@ -18,7 +18,7 @@ from robots.models import Robot
 from tests.bridge.messages import worker_step_requested
 from tests.bridge.test_robot_step import put_state
 from workers import livestate, metrics, stepper
-from workers.stepper import StepProcess, StepRunner
+from workers.stepper import StepProcess, StepProcesses, StepRunner
 
 MakeRobot = Callable[..., Robot]
 ROUTE = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
@@ -174,3 +174,43 @@ def test_a_step_process_ends_when_the_bridge_is_gone(make_robot: MakeRobot) -> N
 
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)  # joined: it exited and was reaped
+
+
+@pytest.mark.django_db(transaction=True)
+def test_step_processes_run_each_robots_steps_in_its_own_child(make_robot: MakeRobot) -> None:
+    steps = StepProcesses(2, threads=1)
+    robots = [_robot_with_mission(make_robot) for _ in range(8)]
+    by_child = {steps.child_of(robot.name) for robot, _ in robots}
+    assert len(by_child) == 2, "eight random names all hash to one child"
+    steps.start()
+    try:
+        pids = {child.pid for child in steps.children}
+        assert len(pids) == 2 and os.getpid() not in pids
+
+        steps.request([robot.name for robot, _ in robots])
+
+        assert all(_wait_until_running(mission.name) for _, mission in robots)
+    finally:
+        steps.close()
+    assert all(child.pid is None for child in steps.children)
+
+
+@pytest.mark.django_db(transaction=True)
+def test_each_step_process_ends_when_the_bridges_end_of_its_pipe_closes() -> None:
+    """The second child is forked while the first one's pipe is open: it must not keep that pipe alive."""
+    steps = StepProcesses(2, threads=1)
+    steps.start()
+    first = steps.children[0]
+    try:
+        pid = first.pid
+        assert pid is not None
+        assert first._sender is not None
+        first._sender.close()  # as when the bridge is killed: its ends of the pipes close
+
+        deadline = time.monotonic() + 10
+        while Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z":  # exited, not yet reaped
+            assert time.monotonic() < deadline, "the first child outlived its pipe"
+            time.sleep(0.01)
+    finally:
+        first._sender = None
+        steps.close()

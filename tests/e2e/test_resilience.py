@@ -149,11 +149,14 @@ def _alive(pid: int) -> bool:
 def test_a_bridge_killed_alone_leaves_no_step_process_behind(stack):
     bridge = stack.processes["bridge"]
     pid = bridge.popen.pid
-    step_processes = wait_for(lambda: _children(pid), message="the bridge's step process")
+    step_processes = wait_for(
+        lambda: len(_children(pid)) == settings.BRIDGE_STEP_PROCESSES and _children(pid),
+        message="the bridge's step processes",
+    )
     os.kill(pid, signal.SIGKILL)  # the bridge alone, as the OOM killer would, not its process group
     bridge.popen.wait(timeout=30)
     try:
-        wait_for(lambda: not any(map(_alive, step_processes)), message="its step process to exit")
+        wait_for(lambda: not any(map(_alive, step_processes)), message="its step processes to exit")
     finally:
         for child in step_processes:  # a step process left behind would go on taking this suite's steps
             with suppress(ProcessLookupError):

@@ -4,7 +4,7 @@ from django.conf import settings
 from django.core.management.base import BaseCommand, CommandParser
 
 from workers.bridge import Bridge
-from workers.stepper import StepProcess
+from workers.stepper import StepProcesses
 
 
 class Command(BaseCommand):
@@ -18,7 +18,7 @@ class Command(BaseCommand):
         )
 
     def handle(self, *args: Any, share_group: str, **options: Any) -> None:
-        steps = StepProcess(threads=settings.BRIDGE_STEP_THREADS)
+        steps = StepProcesses(settings.BRIDGE_STEP_PROCESSES, threads=settings.BRIDGE_STEP_THREADS)
         try:
             Bridge(share_group=share_group, steps=steps).run_forever()
         finally:
