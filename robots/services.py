@@ -3,11 +3,12 @@ for the robot (after commit) so that the engine reacts to the change; the bridge
 nothing (the engine reads the robot's live state from Redis, not these columns)."""
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from django.conf import settings
 from django.db import IntegrityError, connection, transaction
+from django.db.models import Exists, OuterRef
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
 from missions.choices import MissionState
@@ -100,16 +101,29 @@ def robot_teleop(*, robot: Robot, action: TeleopAction) -> Robot:
     return locked
 
 
-def robot_request_factsheet(*, name: str) -> None:
-    """Ask the robot for its factsheet (sent by its next step), unless a request is already waiting."""
+def robots_came_online(*, names: Sequence[str]) -> None:
+    """Mark robots online and ask each for its factsheet (sent by its next step, which the caller requests),
+    unless a request is already waiting.
+
+    One transaction for them all: robots come online in bursts (a fleet starting, a broker restart), and
+    the bridge does this between two batches of messages. The robots' rows are locked in name order, so
+    two bridges cannot deadlock, and the check for a waiting request cannot race with another's insert.
+    """
     with transaction.atomic():
-        robot = Robot.objects.select_for_update().filter(name=name).first()
-        if robot is None:
+        Robot.objects.filter(name__in=names).update(online=True)
+        if not settings.DISPATCH_REQUEST_FACTSHEET:
             return
-        waiting = robot.instant_actions.filter(action_type=FACTSHEET_REQUEST, status__isnull=True)
-        if not waiting.exists():
-            _queue_instant_action(robot, FACTSHEET_REQUEST)
-        wake_robot(name)
+        waiting = InstantAction.objects.filter(
+            robot=OuterRef("name"), action_type=FACTSHEET_REQUEST, status__isnull=True
+        )
+        asked = (
+            Robot.objects.select_for_update(of=("self",))
+            .filter(name__in=names)
+            .filter(~Exists(waiting))
+            .order_by("name")
+            .values_list("name", flat=True)
+        )
+        InstantAction.objects.bulk_create([_instant_action(name, FACTSHEET_REQUEST) for name in asked])
 
 
 def robot_check_heartbeats(*, now: float | None = None) -> list[str]:
@@ -154,8 +168,14 @@ def robot_status_write(*, columns: tuple[str, ...], rows: list[tuple[Any, ...]])
 
 def _queue_instant_action(robot: Robot, action_type: str) -> InstantAction:
     """Put an instant action in the robot's outbox; the robot's next step sends it and tracks it."""
-    return InstantAction.objects.create(
-        action_id=new_action_id(f"{robot.name}-{action_type}"), robot=robot, action_type=action_type
+    action = _instant_action(robot.name, action_type)
+    action.save(force_insert=True)
+    return action
+
+
+def _instant_action(robot: str, action_type: str) -> InstantAction:
+    return InstantAction(
+        action_id=new_action_id(f"{robot}-{action_type}"), robot_id=robot, action_type=action_type
     )
 
 

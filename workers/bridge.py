@@ -30,7 +30,7 @@ from missions.selectors import robots_with_missions
 from missions.services import mission_orders_accepted
 from robots.choices import AgvClass
 from robots.models import Robot
-from robots.services import robot_request_factsheet, robot_status_write
+from robots.services import robot_status_write, robots_came_online
 from vda5050.codec import parse_connection, parse_factsheet, parse_state, parse_visualization
 from vda5050.errors import ProtocolError
 from vda5050.models import ConnectionState, State
@@ -249,13 +249,10 @@ class Bridge:
     ) -> None:
         if came_online:
             try:
-                Robot.objects.filter(name__in=came_online).update(online=True)
+                robots_came_online(names=came_online)
             except DatabaseError:
                 livestate.client().srem(livestate.ONLINE_SET, *came_online)  # their next state tries again
                 raise
-            for name in came_online:
-                if settings.DISPATCH_REQUEST_FACTSHEET:
-                    robot_request_factsheet(name=name)
         for name in disconnected:
             if livestate.mark_offline(name):
                 Robot.objects.filter(name=name).update(online=False)

@@ -86,6 +86,24 @@ def test_a_robot_that_stays_online_is_not_asked_for_its_factsheet_again(bridge: 
     assert _waiting_factsheet_requests(robot) == 0
 
 
+def test_robots_coming_online_together_are_marked_and_asked_for_factsheets_in_one_transaction(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    """A fleet (re)connecting at once must not cost the bridge's thread a transaction per robot."""
+    answered, waiting, third = make_robot(), make_robot(), make_robot()
+    InstantAction.objects.filter(robot__in=[answered, third]).update(status=ActionStatus.FINISHED.value)
+    bridge.directory.reload()
+
+    with CaptureQueriesContext(connection) as queries:
+        bridge.handle([state_message(robot, header_id=1) for robot in (answered, waiting, third)])
+
+    assert [_waiting_factsheet_requests(r) for r in (answered, waiting, third)] == [1, 1, 1]
+    assert all(_reload(r).online for r in (answered, waiting, third))
+    assert bridge.steps.queued() >= {answered.name, waiting.name, third.name}
+    statements = [q["sql"].split(" ", 1)[0] for q in queries]
+    assert statements.count("INSERT") == 1 and statements.count("UPDATE") == 1
+
+
 def test_a_repeated_state_with_nothing_new_for_the_engine_requests_no_step(
     bridge: Bridge, robot: Robot
 ) -> None:
