@@ -14,6 +14,7 @@ robot's states by the robot's own timestamp and headerId, so it does not matter 
 import logging
 import queue
 import time
+import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -46,6 +47,7 @@ SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUA
 BATCH_LIMIT = 2000  # messages handled per pipeline round trip
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
+FORGET_STATUS_SECONDS = 60.0  # a robot silent this long is forgotten until it is heard again
 FAILURE_PAUSE_SECONDS = 1.0  # after an iteration failed (database or Redis unreachable)
 STATUS_COLUMNS = (
     "battery_level",
@@ -65,10 +67,13 @@ JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages"})
 class RobotStatus:
     """A robot's status as last written to PostgreSQL, and what is waiting to be written."""
 
+    last_state_at_period: float  # s between writes of an unchanged status's newer last_state_at
+    heard_at: float  # monotonic s of the robot's last message
     written: dict[str, Any] = field(default_factory=dict)
     pending: dict[str, Any] = field(default_factory=dict)
     written_at: float = 0.0
     last_state_at: datetime | None = None
+    last_state_at_written: datetime | None = None
 
 
 class RobotDirectory:
@@ -259,8 +264,20 @@ class Bridge:
                 changed.add(name)
         self.steps.request(changed | set(came_online), at=received_at)
 
+    def _status(self, name: str) -> RobotStatus:
+        """The robot's status, now heard from."""
+        status = self.status.get(name)
+        if status is None:
+            # A period of its own, from 1/2 to 1 LAST_STATE_AT_PERIOD: robots that came online together (a
+            # fleet starting) would otherwise rewrite their unchanged statuses together for ever after.
+            spread = 0.5 + (zlib.crc32(name.encode()) % 1024) / 2048
+            status = self.status[name] = RobotStatus(LAST_STATE_AT_PERIOD * spread, time.monotonic())
+        else:
+            status.heard_at = time.monotonic()
+        return status
+
     def _remember_status(self, name: str, state: State) -> None:
-        status = self.status.setdefault(name, RobotStatus())
+        status = self._status(name)
         position = state.agv_position
         values: dict[str, Any] = {
             "battery_level": state.battery_state.battery_charge,
@@ -287,7 +304,7 @@ class Bridge:
         status.last_state_at = datetime.now(UTC)
 
     def _pending(self, name: str) -> dict[str, Any]:
-        return self.status.setdefault(name, RobotStatus()).pending
+        return self._status(name).pending
 
     def _store_factsheet(self, name: str, payload: bytes) -> None:
         factsheet = parse_factsheet(payload)
@@ -300,7 +317,7 @@ class Bridge:
 
     def flush(self) -> None:
         """Write the orders robots took, and each robot's changed status in one statement; unchanged robots
-        cost nothing."""
+        cost nothing, and robots long silent are forgotten (a deleted one would stay for ever)."""
         if self.accepted_orders:
             orders, self.accepted_orders = self.accepted_orders, {}
             try:
@@ -309,22 +326,31 @@ class Bridge:
                 logger.exception("acceptance of %d orders not written", len(orders))
         now = time.monotonic()
         groups: dict[tuple[str, ...], list[tuple[Any, ...]]] = {}
+        silent = []
         for name, status in self.status.items():
             changed = {
                 key: value for key, value in status.pending.items() if status.written.get(key) != value
             }
-            due = status.last_state_at is not None and now - status.written_at >= LAST_STATE_AT_PERIOD
+            due = (
+                status.last_state_at != status.last_state_at_written
+                and now - status.written_at >= status.last_state_at_period
+            )
             if not changed and not due:
+                if now - status.heard_at >= FORGET_STATUS_SECONDS:
+                    silent.append(name)
                 continue
             status.written.update(status.pending)
             status.pending = {}
             status.written_at = now
+            status.last_state_at_written = status.last_state_at
             columns = tuple(column for column in STATUS_COLUMNS if column in status.written)
             values = [jsonb(status.written[c]) if c in JSON_COLUMNS else status.written[c] for c in columns]
             if status.last_state_at is not None:  # a robot only seen on visualization keeps its time
                 columns += ("last_state_at",)
                 values.append(status.last_state_at)
             groups.setdefault(columns, []).append((*values, name))
+        for name in silent:
+            del self.status[name]
         self._last_flush = now
         for columns, rows in groups.items():
             try:
@@ -343,6 +369,7 @@ class Bridge:
             for name in skipped:  # written in full by the next flush
                 status = self.status[name]
                 status.pending, status.written, status.written_at = status.written, {}, 0.0
+                status.last_state_at_written = None
 
 
 def _timestamp_ms(timestamp: str) -> int:

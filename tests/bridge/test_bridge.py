@@ -30,6 +30,7 @@ from tests.bridge.messages import (
 from tests.dispatch.builders import error
 from tests.vda5050.samples import full_factsheet
 from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
+from workers import bridge as bridge_module
 from workers import livestate, metrics
 from workers.bridge import Bridge
 
@@ -355,6 +356,67 @@ def test_a_flush_writes_only_the_robots_that_changed(bridge: Bridge, make_robot:
     assert len(_flush_statements(bridge)) == 2
 
     assert (_reload(moving).pose_x, _reload(parked).battery_level) == (9.0, -1.0)
+
+
+def _age(bridge: Bridge, seconds: float) -> None:
+    """As if `seconds` had passed since each robot was last written and heard."""
+    for status in bridge.status.values():
+        status.written_at -= seconds
+        status.heard_at -= seconds
+
+
+def test_an_unchanged_status_rewrites_only_a_newer_last_state_time_once_its_period_is_up(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    heard, silent = make_robot(), make_robot()
+    bridge.directory.reload()
+    bridge.handle([state_message(heard, header_id=1), state_message(silent, header_id=1)])
+    bridge.flush()
+    written = _reload(heard).last_state_at
+    Robot.objects.filter(name=silent.name).update(last_state_at=None)  # would be set again if rewritten
+    bridge.handle([state_message(heard, header_id=2, at=1.0)])
+
+    bridge.flush()
+    assert _reload(heard).last_state_at == written  # its period is not up
+
+    _age(bridge, bridge_module.LAST_STATE_AT_PERIOD)
+    bridge.flush()
+    assert _reload(heard).last_state_at > written
+    assert _reload(silent).last_state_at is None  # nothing newer to write
+
+
+def test_robots_heard_together_rewrite_their_last_state_times_at_different_moments(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    """A fleet that came online together must not write every unchanged status in the same flush."""
+    robots = [make_robot() for _ in range(20)]
+    bridge.directory.reload()
+    bridge.handle([state_message(r, header_id=1) for r in robots])
+    bridge.flush()
+    Robot.objects.filter(name__in=[r.name for r in robots]).update(last_state_at=None)
+    bridge.handle([state_message(r, header_id=2, at=1.0) for r in robots])
+
+    _age(bridge, 0.75 * bridge_module.LAST_STATE_AT_PERIOD)
+    bridge.flush()
+
+    written = Robot.objects.filter(name__in=[r.name for r in robots], last_state_at__isnull=False).count()
+    assert 0 < written < len(robots)
+
+
+def test_a_robot_silent_for_long_is_forgotten_and_written_in_full_when_heard_again(
+    bridge: Bridge, robot: Robot
+) -> None:
+    bridge.handle([state_message(robot, header_id=1, battery=40.0)])
+    bridge.flush()
+    _age(bridge, bridge_module.FORGET_STATUS_SECONDS)
+
+    bridge.flush()
+    assert robot.name not in bridge.status
+
+    Robot.objects.filter(name=robot.name).update(battery_level=-1.0)
+    bridge.handle([state_message(robot, header_id=2, at=1.0, battery=40.0)])
+    bridge.flush()
+    assert _reload(robot).battery_level == 40.0
 
 
 def test_visualization_updates_the_pose_without_a_step(bridge: Bridge, robot: Robot) -> None:
