@@ -12,6 +12,7 @@ import argparse
 import asyncio
 import json
 import logging
+import os
 import re
 import sys
 import time
@@ -38,6 +39,7 @@ STATE_TICK = 0.05  # s; periodic states go out in buckets this far apart, spread
 GRID_SPACING = 2.0  # m between robots' home positions
 WAYPOINT_OFFSETS = ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.0, 0.0))  # m from home, route by route
 QUIET_SECONDS = 2.0  # s without instant actions after which the server's greeting is over
+SETTLED_READINGS = 2  # 1-s CPU readings in a row below --settle-cores after which the server has settled
 CONNECT_TIMEOUT = 10.0  # s for a CONNACK or all SUBACKs of one connection
 START_TIMEOUT = 60.0  # s for every robot's first order in the start phase
 CLOSE_TIMEOUT = 10.0  # s to let queued messages leave before disconnecting
@@ -72,6 +74,7 @@ class Options:
     robots_per_connection: int = 250
     http_concurrency: int = 8
     online_timeout: float = 120.0
+    settle_cores: float = field(default_factory=lambda: 0.3 * (os.cpu_count() or 1))
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex[:6])
     label: str = ""
     output: Path = Path("bench/results")
@@ -155,6 +158,7 @@ class Bench:
         self.by_serial = {load.robot.serial: load for load in self.loads}
         self.created: list[str] = []  # robot names the server accepted
         self.last_instant_action = time.monotonic()
+        self.settle_seconds = 0.0
         self.stopped = False
         self.counts: Counter[str] = Counter()
         self.window = Window()
@@ -190,6 +194,7 @@ class Bench:
             self._state_task = self.loop.create_task(self._state_loop())
             await self._wait_online()
             await self._wait_quiet()
+            await self.wait_settled()
             if options.mode == RUN:
                 await self._start_phase()
                 self.depth = options.queue
@@ -258,6 +263,27 @@ class Bench:
         deadline = self.loop.time() + self.options.online_timeout
         while self.loop.time() < deadline and time.monotonic() - self.last_instant_action < QUIET_SECONDS:
             await asyncio.sleep(0.1)
+
+    async def wait_settled(self) -> None:
+        """Let the server work off the fleet's arrival before measuring: each new robot costs it a few steps
+        (coming online, its factsheet request and the answer), seconds of work for a thousand robots, and
+        robots still arriving are not idle ones. Settled: the server's processes used less than
+        `settle_cores` in SETTLED_READINGS 1-s readings in a row (a server on another machine reads 0).
+        How long it took is reported as settle_seconds."""
+        meter = measure.CpuMeter(self.options.process_groups)
+        began = time.monotonic()
+        deadline = began + self.options.online_timeout
+        before, calm = meter.snapshot(), 0
+        while calm < SETTLED_READINGS and time.monotonic() < deadline:
+            at = time.monotonic()
+            await asyncio.sleep(1.0)
+            after = meter.snapshot()
+            used = measure.usage(before, after, time.monotonic() - at)
+            cores = sum(group["cores"] for name, group in used.items() if name != measure.GENERATOR)
+            calm = calm + 1 if cores < self.options.settle_cores else 0
+            before = after
+        self.settle_seconds = round(time.monotonic() - began, 1)
+        logger.info("server settled after %.1f s", self.settle_seconds)
 
     async def _start_phase(self) -> None:
         """Every robot idle gets one mission: POST -> first order received is the start latency."""
@@ -521,6 +547,7 @@ class Bench:
             "options": {**asdict(options), "output": str(options.output)},
             "machine": measure.machine(),
             "window_seconds": round(seconds, 2),
+            "settle_seconds": self.settle_seconds,
             "throughput": {
                 "orders_per_second": round(window.orders_finished / seconds, 1),
                 "missions_per_second": round(window.missions_completed / seconds, 2),
@@ -642,6 +669,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--robots-per-connection", type=int, default=defaults.robots_per_connection)
     parser.add_argument("--http-concurrency", type=int, default=defaults.http_concurrency)
     parser.add_argument("--online-timeout", type=float, default=defaults.online_timeout)
+    parser.add_argument(
+        "--settle-cores",
+        type=float,
+        default=defaults.settle_cores,
+        help="server cores below which it has worked off the fleet's arrival (default: 0.3 x CPU count)",
+    )
     parser.add_argument("--run-id", default=None, help="robot names are bench-<run id>-<i> (default: random)")
     parser.add_argument("--label", default="", help="names the run in reports (e.g. the server under test)")
     parser.add_argument("--output", type=Path, default=defaults.output, help="directory for JSON + Markdown")

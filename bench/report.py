@@ -56,6 +56,7 @@ def run_markdown(result: dict[str, Any]) -> str:
     lag = result["generator_tick_lag_ms"]
     lines += [
         f"| errors | {', '.join(f'{key} {count}' for key, count in errors.items()) or 'none'} |",
+        f"| server settled after the fleet came online (s) | {_value(result.get('settle_seconds'))} |",
         f"| states/s published | {throughput['states_per_second']} |",
         f"| generator state-tick lag p99 / max (ms) | {_value(lag['p99'])} / {_value(lag['max'])} |",
         "",

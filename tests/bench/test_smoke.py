@@ -24,6 +24,7 @@ import pytest
 import requests
 from django.conf import settings
 
+from bench.fleet import SETTLED_READINGS
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
 from tests.e2e.conftest import PYTHON, ROOT, start_servers, wait_for
 from tests.vda5050.schemas import validate_message
@@ -159,6 +160,7 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
     assert result["errors"]["post_errors"] == result["errors"]["malformed_messages"] == 0
     assert result["errors"]["start_timeouts"] == result["errors"]["mqtt_disconnects"] == 0
     assert result["start_latency_ms"]["count"] == 5
+    assert result["settle_seconds"] >= SETTLED_READINGS
     first_orders = {}  # robot -> when the server sent it its first order (epoch s, the server's clock)
     for order in capture.of("order"):
         sent = datetime.fromisoformat(order["timestamp"].replace("Z", "+00:00")).timestamp()
