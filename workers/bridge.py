@@ -14,6 +14,7 @@ robot's states by the robot's own timestamp and headerId, so it does not matter 
 import gc
 import logging
 import queue
+import threading
 import time
 import zlib
 from collections import Counter
@@ -24,7 +25,7 @@ from typing import Any
 import orjson
 import paho.mqtt.client as mqtt
 from django.conf import settings
-from django.db import DatabaseError, close_old_connections
+from django.db import DatabaseError, close_old_connections, connections
 
 from fleet.db import jsonb
 from missions.dispatch import StateDigest, state_digest, takes_order_only
@@ -77,6 +78,14 @@ class RobotStatus:
     last_state_at_written: datetime | None = None
 
 
+@dataclass
+class Flush:
+    """One status write: robot -> (orderId, orderUpdateId) it took, and columns -> rows of values + name."""
+
+    orders: dict[str, tuple[str, int]]
+    statuses: dict[tuple[str, ...], list[tuple[Any, ...]]] = field(default_factory=dict)
+
+
 class RobotDirectory:
     """Which robot a topic belongs to: (interface, major version, manufacturer, serial number) -> name."""
 
@@ -116,6 +125,11 @@ class Bridge:
         self.client.on_message = self._on_message
         self.steps = steps or StepRunner(threads=settings.BRIDGE_STEP_THREADS)
         self._last_flush = time.monotonic()
+        self._writes: queue.SimpleQueue[Flush | None] = queue.SimpleQueue()  # to the writer; None: end
+        self._writer: threading.Thread | None = None
+        self._written = threading.Event()  # no flush is being written
+        self._written.set()
+        self._skipped: queue.SimpleQueue[str] = queue.SimpleQueue()  # robots whose status a write skipped
 
     # --- MQTT thread ---
 
@@ -146,6 +160,7 @@ class Bridge:
         # out of the garbage collector's sight, whose full collections walked it and stopped the bridge for
         # ~80 ms every few seconds (its step processes, forked earlier, freeze their own).
         gc.freeze()
+        self.start_status_writer()
         self.client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
         self.client.loop_start()
         try:
@@ -157,15 +172,19 @@ class Bridge:
                     time.sleep(FAILURE_PAUSE_SECONDS)
         finally:
             self.client.loop_stop()
+            self.stop_status_writer()
 
     def run_once(self, timeout: float) -> None:
-        """Handle whatever arrived (waiting up to `timeout` for something), flushing status when due."""
+        """Handle whatever arrived (waiting up to `timeout` for something); when a flush is due and the
+        last one is written, hand the next to the status-writer thread."""
         batch = self._drain(timeout)
         close_old_connections()
         if batch:
             self.handle([(topic, payload) for topic, payload, _ in batch], received_at=batch[0][2])
-        if time.monotonic() - self._last_flush >= settings.BRIDGE_STATUS_FLUSH_SECONDS:
-            self.flush()
+        due = time.monotonic() - self._last_flush >= settings.BRIDGE_STATUS_FLUSH_SECONDS
+        if due and self._written.is_set():
+            self._written.clear()
+            self._writes.put(self._collect())
 
     def _drain(self, timeout: float) -> list[tuple[str, bytes, float]]:
         try:
@@ -321,16 +340,41 @@ class Bridge:
         )
 
     def flush(self) -> None:
-        """Write the orders robots took, and each robot's changed status in one statement; unchanged robots
-        cost nothing, and robots long silent are forgotten (a deleted one would stay for ever)."""
-        if self.accepted_orders:
-            orders, self.accepted_orders = self.accepted_orders, {}
+        """Write the orders robots took and the robots' changed statuses now, in this thread."""
+        self._write(self._collect())
+
+    def start_status_writer(self) -> None:
+        """The thread that writes the flushes `run_once` collects, so that the processing thread goes on
+        handling states while a flush waits for PostgreSQL (it stopped them for 20-40 ms every second)."""
+        self._writer = threading.Thread(target=self._write_forever, name="status-writer", daemon=True)
+        self._writer.start()
+
+    def stop_status_writer(self) -> None:
+        """Let the status writer write what it holds, and end with its database connection closed."""
+        if self._writer is not None:
+            self._writes.put(None)
+            self._writer.join(timeout=30)
+            self._writer = None
+
+    def _write_forever(self) -> None:
+        while (flush := self._writes.get()) is not None:
             try:
-                mission_orders_accepted(orders=orders)
-            except DatabaseError:  # harmless: the sweep's step finds the order taken instead of resending it
-                logger.exception("acceptance of %d orders not written", len(orders))
+                close_old_connections()
+                self._write(flush)
+            except Exception:  # PostgreSQL away for a moment: statuses are rewritten once they change
+                logger.exception("status flush failed")
+            finally:
+                self._written.set()
+        connections.close_all()  # this thread's
+
+    def _collect(self) -> Flush:
+        """Take what the next write holds: the orders robots took, and each robot's status that changed or
+        whose newer last_state_at is due; unchanged robots cost nothing, and robots long silent are
+        forgotten (a deleted one would stay for ever)."""
+        self._restore_skipped()
         now = time.monotonic()
-        groups: dict[tuple[str, ...], list[tuple[Any, ...]]] = {}
+        flush = Flush(orders=self.accepted_orders)
+        self.accepted_orders = {}
         silent = []
         for name, status in self.status.items():
             changed = {
@@ -353,11 +397,21 @@ class Bridge:
             if status.last_state_at is not None:  # a robot only seen on visualization keeps its time
                 columns += ("last_state_at",)
                 values.append(status.last_state_at)
-            groups.setdefault(columns, []).append((*values, name))
+            flush.statuses.setdefault(columns, []).append((*values, name))
         for name in silent:
             del self.status[name]
         self._last_flush = now
-        for columns, rows in groups.items():
+        return flush
+
+    def _write(self, flush: Flush) -> None:
+        """Each group of statuses in one statement; robots a step holds are skipped and rewritten in full by
+        the next flush (`_restore_skipped`)."""
+        if flush.orders:
+            try:
+                mission_orders_accepted(orders=flush.orders)
+            except DatabaseError:  # harmless: the sweep's step finds the order taken instead of resending it
+                logger.exception("acceptance of %d orders not written", len(flush.orders))
+        for columns, rows in flush.statuses.items():
             try:
                 skipped = robot_status_write(columns=columns, rows=rows)
             except DatabaseError:
@@ -371,10 +425,20 @@ class Bridge:
                     except DatabaseError:
                         logger.exception("status of robot %s not written", row[-1])
                         metrics.count(metrics.STATUS_WRITES_FAILED)
-            for name in skipped:  # written in full by the next flush
-                status = self.status[name]
-                status.pending, status.written, status.written_at = status.written, {}, 0.0
-                status.last_state_at_written = None
+            for name in skipped:
+                self._skipped.put(name)
+
+    def _restore_skipped(self) -> None:
+        """What the last write skipped is pending again, under what changed since."""
+        while True:
+            try:
+                name = self._skipped.get_nowait()
+            except queue.Empty:
+                return
+            status = self.status.get(name)
+            if status is not None:
+                status.pending = {**status.written, **status.pending}
+                status.written, status.written_at, status.last_state_at_written = {}, 0.0, None
 
 
 def _timestamp_ms(timestamp: str) -> int:

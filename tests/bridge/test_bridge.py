@@ -668,3 +668,49 @@ def test_an_order_acceptance_of_a_mission_a_step_holds_is_dropped_without_waitin
         assert time.monotonic() - started < 1
 
     assert not Mission.objects.get(robot=robot.name).order_accepted
+
+
+@pytest.mark.django_db(transaction=True)  # the writer's and the other connection see committed robots only
+def test_a_flush_waiting_for_the_database_does_not_hold_up_the_states_that_arrive_meanwhile(
+    bridge: Bridge, robot: Robot, settings: Any
+) -> None:
+    settings.BRIDGE_STATUS_FLUSH_SECONDS = 0  # a flush is due at every iteration
+    bridge.start_status_writer()
+    try:
+        _handle_while_a_flush_waits(bridge, robot)
+    finally:
+        bridge.stop_status_writer()
+
+
+def _handle_while_a_flush_waits(bridge: Bridge, robot: Robot) -> None:
+    bridge.inbox.put((*state_message(robot, header_id=1, battery=30.0), time.time()))
+    bridge.run_once(timeout=0)  # online, and its first status written
+    assert _wait_written(bridge)
+    other = psycopg.connect(host="127.0.0.1", dbname=connection.settings_dict["NAME"], user="postgres")
+    with connection.cursor() as cursor:
+        cursor.execute("SET lock_timeout = '2s'")  # a write in this thread fails the test, not hangs it
+    try:
+        other.execute(f"LOCK TABLE {Robot._meta.db_table} IN EXCLUSIVE MODE")  # every write waits
+        bridge.inbox.put((*state_message(robot, header_id=2, at=1.0, battery=31.0), time.time()))
+        bridge.run_once(timeout=0)  # its flush goes to the writer, which waits for the lock
+        later = state_message(robot, header_id=3, at=2.0, battery=32.0)
+        bridge.inbox.put((*later, time.time()))
+
+        bridge.run_once(timeout=0)
+
+        assert livestate.latest_state(robot.name).payload == later[1]
+        assert not bridge._written.is_set()
+    finally:
+        other.rollback()
+        other.close()
+        with connection.cursor() as cursor:
+            cursor.execute("RESET lock_timeout")
+    assert _wait_written(bridge)
+    assert _reload(robot).battery_level == 31.0
+    bridge.run_once(timeout=0)  # the next flush, with what arrived meanwhile
+    assert _wait_written(bridge)
+    assert _reload(robot).battery_level == 32.0
+
+
+def _wait_written(bridge: Bridge) -> bool:
+    return bridge._written.wait(timeout=10)
