@@ -8,7 +8,6 @@ from typing import Any
 
 from django.conf import settings
 from django.db import IntegrityError, connection, transaction
-from django.db.models import Exists, OuterRef
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
 from missions.choices import MissionState
@@ -106,24 +105,27 @@ def robots_came_online(*, names: Sequence[str]) -> None:
     unless a request is already waiting.
 
     One transaction for them all: robots come online in bursts (a fleet starting, a broker restart), and
-    the bridge does this between two batches of messages. The robots' rows are locked in name order, so
-    two bridges cannot deadlock, and the check for a waiting request cannot race with another's insert.
+    the bridge does this between two batches of messages. The rows are locked first, in name order, so two
+    callers cannot deadlock and the check for a waiting request cannot race with another's insert.
     """
     with transaction.atomic():
-        Robot.objects.filter(name__in=names).update(online=True)
-        if not settings.DISPATCH_REQUEST_FACTSHEET:
-            return
-        waiting = InstantAction.objects.filter(
-            robot=OuterRef("name"), action_type=FACTSHEET_REQUEST, status__isnull=True
-        )
-        asked = (
-            Robot.objects.select_for_update(of=("self",))
+        locked = list(
+            Robot.objects.select_for_update()
             .filter(name__in=names)
-            .filter(~Exists(waiting))
             .order_by("name")
             .values_list("name", flat=True)
         )
-        InstantAction.objects.bulk_create([_instant_action(name, FACTSHEET_REQUEST) for name in asked])
+        Robot.objects.filter(name__in=locked).update(online=True)
+        if not settings.DISPATCH_REQUEST_FACTSHEET:
+            return
+        waiting = set(
+            InstantAction.objects.filter(
+                robot_id__in=locked, action_type=FACTSHEET_REQUEST, status__isnull=True
+            ).values_list("robot_id", flat=True)
+        )
+        InstantAction.objects.bulk_create(
+            [_instant_action(name, FACTSHEET_REQUEST) for name in locked if name not in waiting]
+        )
 
 
 def robot_check_heartbeats(*, now: float | None = None) -> list[str]:
