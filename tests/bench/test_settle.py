@@ -27,8 +27,8 @@ def test_the_start_waits_until_the_servers_processes_are_quiet() -> None:
         busy.kill()
         busy.wait()
     # Busy readings until the kill at 2.5 s, then SETTLED_READINGS quiet ones (the one spanning the kill
-    # may be either).
-    assert 2 + SETTLED_READINGS <= settled <= 4 + SETTLED_READINGS
+    # may be either); the upper bound only says it did not run to online_timeout.
+    assert 2 + SETTLED_READINGS <= settled < options.online_timeout
 
 
 def test_a_server_whose_processes_cannot_be_seen_counts_as_settled_at_once() -> None:
