@@ -11,7 +11,6 @@ once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis sc
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
 """
 
-import gc
 import logging
 import queue
 import threading
@@ -41,7 +40,7 @@ from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_versi
 from vda5050.topics import shared_subscription as shared_filter
 from workers import livestate, metrics
 from workers.mqtt import new_client
-from workers.stepper import StepProcesses, StepRunner
+from workers.stepper import StepProcesses, StepRunner, settle_long_lived_process
 
 logger = logging.getLogger(__name__)
 
@@ -156,10 +155,7 @@ class Bridge:
         # A state stored just before this bridge last stopped may have lost its step: step every robot with
         # work once (a step that finds nothing to do costs only its reads).
         self.steps.request(robots_with_missions())
-        # What is loaded by now (Django, the apps, the directory) lives as long as the bridge: frozen, it is
-        # out of the garbage collector's sight, whose full collections walked it and stopped the bridge for
-        # ~80 ms every few seconds (its step processes, forked earlier, freeze their own).
-        gc.freeze()
+        settle_long_lived_process()  # its step processes, forked earlier, settle their own
         self.start_status_writer()
         self.client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
         self.client.loop_start()

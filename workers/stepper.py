@@ -11,6 +11,7 @@ import gc
 import logging
 import multiprocessing
 import queue
+import sys
 import threading
 import time
 import zlib
@@ -28,6 +29,22 @@ from workers.publish import publish
 from workers.steps import request_steps, take_requested
 
 logger = logging.getLogger(__name__)
+
+# A thread whose reply came in takes the interpreter lock back only when the thread holding it lets go:
+# at Python's default 5 ms a reply waited up to that long behind one thread's Python code, after every
+# round trip of a step (bench/README.md has what 0.5 ms did to step latency).
+SWITCH_INTERVAL_SECONDS = 0.0005
+
+
+def settle_long_lived_process() -> None:
+    """Set up a long-lived bridge process once its startup is done.
+
+    What is loaded by then (Django, the apps, the robot directory) lives as long as the process: frozen, it
+    is out of the garbage collector's sight, whose full collections walked it and stopped the process for
+    50-170 ms every few seconds. The short switch interval is for the threads that wait on round trips.
+    """
+    gc.freeze()
+    sys.setswitchinterval(SWITCH_INTERVAL_SECONDS)
 
 
 def run_step(name: str, *, requested_at: float | None = None) -> None:
@@ -201,9 +218,7 @@ def _serve_steps(receiver: Connection, threads: int) -> None:
     """The child's main thread: requests off the pipe into the step threads, until the bridge is gone."""
     for sender in _senders:
         sender.close()  # only the bridge holds the sending ends, so its exit ends `recv` below
-    # What the child inherited lives as long as it does: frozen, the garbage collector's full collections
-    # no longer walk it (they stopped all of the child's steps for 50-170 ms every ten seconds or so).
-    gc.freeze()
+    settle_long_lived_process()
     runner = StepRunner(threads)
     runner.start()
     runner.listen()
