@@ -392,37 +392,43 @@ def _commit_with_writes() -> None:
 
 
 # A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's
-# sweep from sending the order again. It holds the order at this update or a later one.
-ACCEPT_ORDER_SQL = f"""
-    UPDATE {Mission._meta.db_table} SET order_accepted = true, updated_at = %s
-    WHERE robot = %s AND state = '{MissionState.RUNNING}' AND NOT order_accepted
-      AND "order"->>'orderId' = %s AND ("order"->>'orderUpdateId')::bigint <= %s
-"""
-# The running missions of these robots that no one else holds: a step or a service holding one is not waited
-# for (its robot's acceptance is dropped).
-UNLOCKED_RUNNING_SQL = f"""
-    SELECT robot FROM {Mission._meta.db_table}
-    WHERE robot = ANY(%s) AND state = '{MissionState.RUNNING}' AND NOT order_accepted
-    FOR NO KEY UPDATE SKIP LOCKED
+# sweep from sending the order again. It holds the order at this update or a later one. Running missions
+# that another transaction holds (a step, a service) are skipped, not waited for.
+ACCEPT_ORDERS_SQL = f"""
+    WITH taken AS (
+        SELECT * FROM unnest(%s::varchar[], %s::text[], %s::bigint[]) AS t(robot, order_id, order_update_id)
+    ), free AS (
+        SELECT name FROM {Mission._meta.db_table}
+        WHERE robot IN (SELECT robot FROM taken) AND state = '{MissionState.RUNNING}' AND NOT order_accepted
+        FOR NO KEY UPDATE SKIP LOCKED
+    )
+    UPDATE {Mission._meta.db_table} AS m SET order_accepted = true, updated_at = %s
+    FROM taken AS t
+    WHERE m.name IN (SELECT name FROM free) AND m.robot = t.robot
+      AND m."order"->>'orderId' = t.order_id AND (m."order"->>'orderUpdateId')::bigint <= t.order_update_id
 """
 
 
 def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
     """Mark accepted the running missions' orders that robots took: robot -> (orderId, orderUpdateId).
 
-    Two statements in one transaction, whatever the number of robots. A mission a step holds is skipped,
-    not waited for: waiting, the flush held the rows it had locked, and the steps of those robots queued
-    behind the step it waited for. A skipped acceptance costs nothing: the sweep resends an order only on
-    a state that does not hold it. An order that is not the mission's current one (a later update is
-    already out, or the order came from elsewhere) matches nothing.
+    One statement, whatever the number of robots, so that it holds the rows it locks only while it runs. A
+    mission a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
+    the steps of those robots queued behind the step it waited for. A skipped acceptance costs nothing:
+    the sweep resends an order only on a state that does not hold it. An order that is not the mission's
+    current one (a later update is already out, or the order came from elsewhere) matches nothing.
     """
-    now = timezone.now()
-    with transaction.atomic(), connection.cursor() as cursor:
-        cursor.execute(UNLOCKED_RUNNING_SQL, [list(orders)])
-        unlocked = [robot for (robot,) in cursor.fetchall()]
-        rows = [(now, robot, *orders[robot]) for robot in unlocked]
-        if rows:
-            cursor.executemany(ACCEPT_ORDER_SQL, rows)
+    robots = list(orders)
+    with connection.cursor() as cursor:
+        cursor.execute(
+            ACCEPT_ORDERS_SQL,
+            [
+                robots,
+                [orders[robot][0] for robot in robots],
+                [orders[robot][1] for robot in robots],
+                timezone.now(),
+            ],
+        )
 
 
 def _current_missions(robot: str, *, count: int) -> list[dispatch.MissionRecord]:

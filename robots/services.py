@@ -4,6 +4,7 @@ nothing (the engine reads the robot's live state from Redis, not these columns).
 
 import time
 from collections.abc import Mapping, Sequence
+from functools import cache
 from typing import Any
 
 from django.conf import settings
@@ -151,21 +152,38 @@ def robot_status_write(*, columns: tuple[str, ...], rows: list[tuple[Any, ...]])
 
     A robot a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
     the steps of those robots queued behind the step it waited for (and two bridges' flushes never
-    deadlock). One round trip for the lock, one for the writes, one commit (in autocommit each row would
-    wait for its own WAL flush); one more read when some were skipped. Deleted robots are not skipped.
+    deadlock). One statement locks, writes and (outside a transaction) commits, so the rows are held only
+    while it runs: a step that comes for one of them waits for no round trip of the flush. One more read
+    when some were skipped. Deleted robots are not skipped.
     """
-    assignments = ", ".join(f"{column} = %s" for column in columns)
     names = [row[-1] for row in rows]
-    with transaction.atomic(), connection.cursor() as cursor:
-        cursor.execute(f"{ROBOTS_BY_NAME_SQL} FOR NO KEY UPDATE SKIP LOCKED", [names])
-        unlocked = {name for (name,) in cursor.fetchall()}
-        if unlocked:
-            writes = [row for row in rows if row[-1] in unlocked]
-            cursor.executemany(f"UPDATE {Robot._meta.db_table} SET {assignments} WHERE name = %s", writes)
-        if len(unlocked) == len(names):
+    with connection.cursor() as cursor:
+        cursor.execute(_status_write_sql(columns), [list(values) for values in zip(*rows, strict=True)])
+        written = {name for (name,) in cursor.fetchall()}
+        if len(written) == len(names):
             return set()
-        cursor.execute(ROBOTS_BY_NAME_SQL, [[name for name in names if name not in unlocked]])
+        cursor.execute(ROBOTS_BY_NAME_SQL, [[name for name in names if name not in written]])
         return {name for (name,) in cursor.fetchall()}
+
+
+@cache
+def _status_write_sql(columns: tuple[str, ...]) -> str:
+    """One array per column (then the names): the same statement whatever the number of robots."""
+    fields = [Robot._meta.get_field(column) for column in (*columns, "name")]
+    arrays = ", ".join(f"%s::{field.db_type(connection)}[]" for field in fields)
+    quoted = [connection.ops.quote_name(field.column) for field in fields]
+    assignments = ", ".join(f"{column} = v.{column}" for column in quoted[:-1])
+    table = Robot._meta.db_table
+    return f"""
+        WITH status AS (SELECT * FROM unnest({arrays}) AS v({", ".join(quoted)})),
+            free AS (
+                SELECT name FROM {table} WHERE name IN (SELECT name FROM status)
+                FOR NO KEY UPDATE SKIP LOCKED
+            )
+        UPDATE {table} AS r SET {assignments}
+        FROM status AS v WHERE r.name = v.name AND r.name IN (SELECT name FROM free)
+        RETURNING r.name
+    """
 
 
 def _queue_instant_action(robot: Robot, action_type: str) -> InstantAction:

@@ -317,14 +317,14 @@ def test_user_info_becomes_the_robots_info_messages(bridge: Bridge, robot: Robot
     assert _reload(robot).info_messages == {"shelf": 4}
 
 
-def test_one_flush_locks_and_writes_all_changed_robots_in_two_statements(
+def test_one_flush_locks_and_writes_all_changed_robots_in_one_statement(
     bridge: Bridge, make_robot: MakeRobot
 ) -> None:
     robots = [make_robot(), make_robot(), make_robot()]
     bridge.directory.reload()
     bridge.handle([state_message(r, battery=30.0 + i) for i, r in enumerate(robots)])
 
-    assert len(_flush_statements(bridge)) == 2
+    assert len(_flush_statements(bridge)) == 1
 
     assert [_reload(r).battery_level for r in robots] == [30.0, 31.0, 32.0]
 
@@ -353,7 +353,7 @@ def test_a_flush_writes_only_the_robots_that_changed(bridge: Bridge, make_robot:
             state_message(parked, header_id=2, at=1.0),
         ]
     )
-    assert len(_flush_statements(bridge)) == 2
+    assert len(_flush_statements(bridge)) == 1
 
     assert (_reload(moving).pose_x, _reload(parked).battery_level) == (9.0, -1.0)
 
