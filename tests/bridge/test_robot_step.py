@@ -4,11 +4,15 @@ The robot's state is put into Redis by hand, as the bridge stores it; missions a
 """
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from datetime import timedelta
+from itertools import pairwise
+from pathlib import Path
 from typing import Any
 
 import pytest
+from django.db import connection
 from django.utils import timezone
 
 from missions.choices import FailureCategory, Lifecycle, MissionState
@@ -248,6 +252,45 @@ def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_
     assert not Robot.objects.filter(name=robot.name).exists()
     assert livestate.latest_state(robot.name).payload is None
     assert outcome.messages == []
+
+
+@contextmanager
+def protocol_trace(path: Path) -> Iterator[Path]:
+    """libpq's trace of the messages this test's connection exchanges with PostgreSQL, written to `path`."""
+    connection.ensure_connection()
+    pgconn = connection.connection.pgconn
+    with path.open("w") as trace:
+        pgconn.trace(trace.fileno())
+        try:
+            yield path
+        finally:
+            pgconn.untrace()
+
+
+def round_trips(trace: str) -> int:
+    """The times the client waited for the server: each turn from its messages to the server's.
+
+    A message starts a line: time, F (client) or B (server), length, type, its contents (which may span
+    lines, as SQL does). The server answers nothing until the client syncs or flushes."""
+    senders = [fields[1] for fields in (line.split("\t") for line in trace.splitlines()) if len(fields) >= 4]
+    return sum(1 for turn in pairwise(senders) if turn == ("F", "B"))
+
+
+@pytest.mark.django_db(transaction=True)  # outside a test's transaction, as the bridge and workers step
+def test_a_step_that_starts_a_mission_costs_three_round_trips_to_postgresql(
+    robot: Robot, tmp_path: Path
+) -> None:
+    """BEGIN, the locking reads, the writes with COMMIT: under load each round trip waits for the CPU."""
+    InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
+    create("m1", robot)
+
+    with protocol_trace(tmp_path / "trace") as trace:
+        outcome = step(robot)
+
+    assert round_trips(trace.read_text()) == 3
+    assert len(orders(outcome)) == 1
+    assert Mission.objects.get(name="m1").state == MissionState.RUNNING  # committed
+    assert connection.get_autocommit() and not connection.in_atomic_block
 
 
 def test_a_step_of_an_unknown_robot_does_nothing(db: None) -> None:
