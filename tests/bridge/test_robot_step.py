@@ -41,8 +41,16 @@ def robot(make_robot: MakeRobot) -> Robot:
     return created
 
 
-def put_state(robot: Robot, *, header_id: int, state: State | None = None, **fields: Any) -> None:
-    """Store a state as the bridge does: `state` (retargeted to the robot), else one built from `fields`."""
+def put_state(
+    robot: Robot,
+    *,
+    header_id: int,
+    state: State | None = None,
+    arrived_at: float | None = None,
+    **fields: Any,
+) -> None:
+    """Store a state as the bridge does: `state` (retargeted to the robot), else one built from `fields`;
+    it arrived at `arrived_at` (epoch s), by default now."""
     payload = wire(robot, state or robot_state(**fields), header_id=header_id, at=float(header_id))
     pipe = livestate.client().pipeline()
     livestate.store_state(
@@ -52,7 +60,7 @@ def put_state(robot: Robot, *, header_id: int, state: State | None = None, **fie
         timestamp_ms=int((T0 + timedelta(seconds=header_id)).timestamp() * 1000),
         header_id=header_id,
         digest=state_digest(parse_state(payload)),
-        arrived_at=time.time(),
+        arrived_at=time.time() if arrived_at is None else arrived_at,
     )
     pipe.execute()
 
@@ -123,6 +131,8 @@ def test_a_second_step_without_a_new_state_sends_nothing(robot: Robot) -> None:
 def test_an_unaccepted_order_is_resent_by_a_later_step(robot: Robot) -> None:
     create("m1", robot)
     [first] = orders(step(robot))
+    # A state from well after the order that does not hold it: the robot lacks the order.
+    put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
 
     outcome = step(robot, after=60.0)
 
