@@ -20,7 +20,7 @@ from django.db.models import JSONField
 from django.utils import timezone
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
-from fleet.db import jsonb
+from fleet.db import jsonb, pipelined_transaction
 from missions import dispatch
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
@@ -314,13 +314,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
     """
     now = now or timezone.now()
     outcome = StepOutcome()
-    connection.ensure_connection()
-    outermost = not connection.in_atomic_block
-    # Under load every round trip to PostgreSQL waits for a turn on the CPU, twice. In pipeline mode a step
-    # costs three: BEGIN (psycopg syncs after it), the locking reads, and the writes with COMMIT. The
-    # pipeline sits inside the transaction block because psycopg syncs a pipeline, a round trip for nothing,
-    # at each change of autocommit, which the block makes on entry and on exit.
-    with transaction.atomic(), connection.connection.pipeline():
+    with pipelined_transaction():
         with connection.cursor() as robot_cursor, connection.cursor() as missions_cursor:
             robot_cursor.execute(ROBOT_FOR_STEP_SQL, [name])
             # The running mission and the next queued one: a step that ends a mission usually starts the next.
@@ -379,16 +373,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
             upcoming = upcoming or _current_missions(name, count=2)
         if view.state != robot_state:
             Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
-        if outermost:
-            _commit_with_writes()
     return outcome
-
-
-def _commit_with_writes() -> None:
-    """COMMIT in the pipeline, so that it goes out with the writes when the pipeline ends. The transaction
-    block's own commit then finds the transaction over and sends nothing (its on-commit hooks still run)."""
-    with connection.cursor() as cursor:
-        cursor.execute("COMMIT")
 
 
 # A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's
