@@ -188,6 +188,8 @@ class Bench:
     async def run(self) -> dict[str, Any]:
         options = self.options
         started_at = datetime.now(UTC)
+        cpu_speed_ms = measure.cpu_speed_ms()  # before the fleet exists: no load of this run
+        logger.info("CPU speed: %.1f ms of calibration work (lower is faster)", cpu_speed_ms)
         try:
             await self._create_robots()
             await self._connect()
@@ -208,7 +210,7 @@ class Bench:
         finally:
             self.posting = False
             await self._shut_down()
-        return self._result(started_at, measured, failed)
+        return self._result(started_at, cpu_speed_ms, measured, failed)
 
     async def _create_robots(self) -> None:
         logger.info("creating %d robots %s-*", len(self.loads), self.options.name_prefix)
@@ -336,6 +338,7 @@ class Bench:
         return {
             "seconds": seconds,
             "processes": measure.usage(first, previous, seconds),
+            "busy_and_steal": measure.busy_and_steal(first.cpu_times, previous.cpu_times),
             "states_published": states,
             "series": series,
         }
@@ -533,7 +536,11 @@ class Bench:
             logger.warning(message)
 
     def _result(
-        self, started_at: datetime, measured: dict[str, Any], failed: dict[str, Any] | None
+        self,
+        started_at: datetime,
+        cpu_speed_ms: float,
+        measured: dict[str, Any],
+        failed: dict[str, Any] | None,
     ) -> dict[str, Any]:
         options = self.options
         seconds = measured["seconds"]
@@ -545,7 +552,7 @@ class Bench:
             "run_id": options.run_id,
             "started_at": started_at.isoformat(),
             "options": {**asdict(options), "output": str(options.output)},
-            "machine": measure.machine(),
+            "machine": {**measure.machine(), "cpu_speed_ms": cpu_speed_ms, **measured["busy_and_steal"]},
             "window_seconds": round(seconds, 2),
             "settle_seconds": self.settle_seconds,
             "throughput": {

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import platform
 import re
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +28,8 @@ DEFAULT_PROCESS_GROUPS = {
     "broker": r"mosquitto",
 }
 GENERATOR = "generator"
+CALIBRATION_ITERATIONS = 5000  # about 150 ms of CPU on a 2.5 GHz core
+CALIBRATION_REPEATS = 5
 
 
 def latency_summary(samples: Sequence[float]) -> dict[str, float | int | None]:
@@ -84,6 +88,7 @@ class Snapshot:
 
     members: dict[str, list[int]]
     samples: dict[int, ProcessSample]
+    cpu_times: tuple[int, ...] | None = None  # the machine's, see ``cpu_times``; None: /proc/stat unreadable
 
 
 class CpuMeter:
@@ -106,7 +111,7 @@ class CpuMeter:
                 sample = process_sample(pid)
                 if sample is not None:
                     samples[pid] = sample
-        return Snapshot(members, samples)
+        return Snapshot(members, samples, cpu_times(_read("/proc/stat")))
 
     def _members(self) -> dict[str, list[int]]:
         members: dict[str, list[int]] = {group: [] for group in self.groups}
@@ -221,6 +226,64 @@ def drift(series: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         "step_p50_ms": trend([point["step_p50_ms"] for point in series]),
         "step_p99_ms": trend([point["step_p99_ms"] for point in series]),
     }
+
+
+def cpu_times(proc_stat: str) -> tuple[int, ...] | None:
+    """All CPUs' jiffies from the text of /proc/stat (its first line: ``cpu`` user nice system idle iowait
+    irq softirq steal ...); None if there is no such line."""
+    first = proc_stat.partition("\n")[0].split()
+    return tuple(int(value) for value in first[1:]) if first[:1] == ["cpu"] else None
+
+
+def busy_and_steal(before: tuple[int, ...] | None, after: tuple[int, ...] | None) -> dict[str, float | None]:
+    """Percent of all CPUs' time between two ``cpu_times`` that the machine was busy (user, nice, system,
+    irq, softirq) and that the hypervisor gave to other VMs (steal); None if either is unknown.
+
+    Whether the machine did other work, or was slowed by its neighbours, while a run measured the server.
+    """
+    if before is None or after is None:
+        return {"busy_pct": None, "steal_pct": None}
+    # The first 8 fields; guest time (9th and 10th) is already counted in user and nice.
+    user, nice, system, idle, iowait, irq, softirq, steal = (
+        later - earlier for earlier, later in zip(before[:8], after[:8], strict=True)
+    )
+    total = user + nice + system + idle + iowait + irq + softirq + steal
+    if total <= 0:
+        return {"busy_pct": None, "steal_pct": None}
+    busy = user + nice + system + irq + softirq
+    return {"busy_pct": round(busy / total * 100, 1), "steal_pct": round(steal / total * 100, 1)}
+
+
+def cpu_speed_ms() -> float:
+    """ms of CPU time a fixed piece of server-like Python work takes, best of CALIBRATION_REPEATS.
+
+    The same code on the same kind of shared VM used half as much CPU again per request on one day as on
+    another, without steal time, so a run's CPU figures compare with another day's only alongside this
+    (lower is faster). Best of several, because other load only makes it slower; CPU time of this thread,
+    so waiting does not count.
+    """
+    best = math.inf
+    for _ in range(CALIBRATION_REPEATS):
+        began = time.thread_time()
+        calibration_work(CALIBRATION_ITERATIONS)
+        best = min(best, time.thread_time() - began)
+    return round(best * 1000, 1)
+
+
+def calibration_work(iterations: int) -> int:
+    """What a request handler does, ``iterations`` times: build a small document, serialize and parse it,
+    add up its numbers and format a line. Returns the lines' total length, the same for the same
+    ``iterations``: the work is fixed, so only the machine changes its time."""
+    length = 0
+    for iteration in range(iterations):
+        document = {
+            f"field_{index}": index * iteration % 1000 if index % 2 else f"value {index}"
+            for index in range(50)
+        }
+        parsed = json.loads(json.dumps(document))
+        numbers = sum(value for value in parsed.values() if isinstance(value, int))
+        length += len(f"request {iteration:06d}: mean {numbers / 25:.2f}, {parsed['field_0']}")
+    return length
 
 
 def machine() -> dict[str, str | int | float]:

@@ -53,10 +53,14 @@ def run_markdown(result: dict[str, Any]) -> str:
             reasons = "; ".join(f"{count}x {reason}" for reason, count in missions["failure_reasons"].items())
             lines.append(f"| failure reasons | {reasons.replace('|', '/')} |")
     errors = {key: count for key, count in result["errors"].items() if key != "samples" and count}
-    lag = result["generator_tick_lag_ms"]
+    lag, machine = result["generator_tick_lag_ms"], result["machine"]
     lines += [
         f"| errors | {', '.join(f'{key} {count}' for key, count in errors.items()) or 'none'} |",
         f"| server settled after the fleet came online (s) | {_value(result.get('settle_seconds'))} |",
+        f"| CPU speed at the start (ms of calibration work; lower is faster) | "
+        f"{_value(machine.get('cpu_speed_ms'))} |",
+        f"| machine busy / steal over the window (% of all CPUs) | {_value(machine.get('busy_pct'))} / "
+        f"{_value(machine.get('steal_pct'))} |",
         f"| states/s published | {throughput['states_per_second']} |",
         f"| generator state-tick lag p99 / max (ms) | {_value(lag['p99'])} / {_value(lag['max'])} |",
         "",
@@ -99,7 +103,8 @@ def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
     header = (
         "| label | mode | N | K | Q | delay s | state Hz | orders/s "
         "| step p50 | step p95 | step p99 | step max | start p50 | start p99 "
-        "| missions done / failed | server cores | " + " | ".join(SERVER_GROUPS) + " | generator |"
+        "| missions done / failed | server cores | " + " | ".join(SERVER_GROUPS) + " | generator "
+        "| CPU speed ms |"
     )
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for result in sorted(results, key=_order):
@@ -121,9 +126,13 @@ def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
             _server_cpu(result, "cores"),
             *(cpu[group]["cores"] if group in cpu else "-" for group in SERVER_GROUPS),
             cpu[GENERATOR]["cores"],
+            _value(result["machine"].get("cpu_speed_ms")),  # runs from before it was measured: -
         ]
         lines.append("| " + " | ".join(str(cell) for cell in cells) + " |")
-    notes = "Latencies in ms; CPU in cores (CPU seconds per second of the measurement window)."
+    notes = (
+        "Latencies in ms; CPU in cores (CPU seconds per second of the measurement window); CPU speed: ms of "
+        "fixed calibration work at the run's start (lower is faster)."
+    )
     machines = sorted({machine_line(result["machine"]) for result in results})
     return "\n".join([*lines, "", notes, *(f"Machine: {line}." for line in machines)]) + "\n"
 

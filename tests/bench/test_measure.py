@@ -38,6 +38,45 @@ def test_snapshot_holds_the_generator_as_its_own_group() -> None:
     assert snapshot.members["nothing"] == []
     (pid,) = snapshot.members[measure.GENERATOR]
     assert snapshot.samples[pid].rss_bytes > 0
+    assert snapshot.cpu_times is not None and len(snapshot.cpu_times) >= 8  # the machine's, user .. steal
+
+
+def test_cpu_speed_is_a_positive_time_in_ms_of_a_fixed_work() -> None:
+    speed = measure.cpu_speed_ms()
+
+    assert isinstance(speed, float)
+    assert speed > 0
+    assert speed == round(speed, 1)
+    assert measure.calibration_work(20) == measure.calibration_work(20) > 0  # the same work every time
+
+
+# user nice system idle iowait irq softirq steal guest guest_nice, all CPUs, in jiffies
+PROC_STAT_BEFORE = (
+    "cpu  1000 20 300 50000 40 0 10 100 500 0\ncpu0 500 10 150 25000 20 0 5 50 250 0\nintr 1 2\n"
+)
+
+
+def test_cpu_times_are_the_first_cpu_line_of_proc_stat() -> None:
+    assert measure.cpu_times(PROC_STAT_BEFORE) == (1000, 20, 300, 50000, 40, 0, 10, 100, 500, 0)
+    assert measure.cpu_times("") is None  # /proc/stat unreadable
+
+
+def test_busy_and_steal_are_shares_of_all_cpu_time_between_two_readings() -> None:
+    before = measure.cpu_times(PROC_STAT_BEFORE)
+    # +1000 jiffies: 300 user, 50 nice, 100 system, 520 idle, 10 iowait, 5 irq, 5 softirq, 10 steal;
+    # guest time (+200) is part of user already and must not count twice.
+    after = (1300, 70, 400, 50520, 50, 5, 15, 110, 700, 0)
+
+    assert measure.busy_and_steal(before, after) == {"busy_pct": 46.0, "steal_pct": 1.0}
+
+
+def test_busy_and_steal_are_unknown_without_proc_stat_or_time_between() -> None:
+    before = measure.cpu_times(PROC_STAT_BEFORE)
+    unknown = {"busy_pct": None, "steal_pct": None}
+
+    assert measure.busy_and_steal(None, before) == unknown
+    assert measure.busy_and_steal(before, None) == unknown
+    assert measure.busy_and_steal(before, before) == unknown
 
 
 @pytest.mark.parametrize(

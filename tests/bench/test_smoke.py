@@ -24,6 +24,7 @@ import pytest
 import requests
 from django.conf import settings
 
+from bench import report
 from bench.fleet import SETTLED_READINGS
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
 from tests.e2e.conftest import PYTHON, ROOT, start_servers, wait_for
@@ -153,6 +154,10 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
     markdown = (tmp_path / f"run-n5-{run_id}.md").read_text()
     assert markdown.startswith("## run: 5 robots")
     assert "| step p99 ms |" in markdown
+    speed = result["machine"]["cpu_speed_ms"]
+    assert speed > 0 and result["machine"]["busy_pct"] > 0
+    assert f"| CPU speed at the start (ms of calibration work; lower is faster) | {speed} |" in markdown
+    assert report.summary_markdown([result]).splitlines()[2].endswith(f" | {speed} |")  # its column, last
     missions = result["missions"]
     assert missions["completed"] > 0
     assert missions["failed"] == 0, missions["failure_reasons"]
