@@ -251,8 +251,6 @@ class Bridge:
             metrics.count(counter, by=by, pipe=pipe, topic=topic_label)
         if seen:
             livestate.mark_seen(pipe, list(seen), max(seen.values()))
-            for name in seen:
-                pipe.sadd(livestate.ONLINE_SET, name)
         results = livestate.execute(pipe) if len(pipe) else []
         stored_results = results[: len(stored)]
         changed = set()
@@ -266,8 +264,7 @@ class Bridge:
                 self.accepted_orders[name] = (digest.order_id, digest.order_update_id)
             else:
                 changed.add(name)
-        added = results[len(results) - len(seen) :]
-        came_online = [name for name, was_added in zip(seen, added, strict=True) if was_added]
+        came_online = livestate.came_online(results[-1]) if seen else []
         self._act(changed, came_online, disconnected, received_at=arrived_at)
 
     def _act(

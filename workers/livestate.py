@@ -41,7 +41,20 @@ if not old[3] then return 2 end
 return {old[3], old[4], old[5], old[6], old[7]}
 """
 
-_STORE_STATE_SHA = hashlib.sha1(_STORE_STATE.encode()).hexdigest()
+# Adds robots to the online set and returns those that were not in it, in one command whatever their
+# number (an SADD per robot costs the bridge more than the store script of its state).
+# KEYS: the online set. ARGV: robot names.
+_MARK_ONLINE = """
+local added = {}
+for _, name in ipairs(ARGV) do
+  if redis.call('SADD', KEYS[1], name) == 1 then table.insert(added, name) end
+end
+return added
+"""
+
+# Scripts are called by their SHA, so a pipeline of them costs one round trip (`execute`).
+_SCRIPTS = {hashlib.sha1(script.encode()).hexdigest(): script for script in (_STORE_STATE, _MARK_ONLINE)}
+_STORE_STATE_SHA, _MARK_ONLINE_SHA = _SCRIPTS
 
 STALE, UNCHANGED, CHANGED = 0, 1, 2
 
@@ -93,7 +106,8 @@ def store_state(
 
 
 def execute(pipe: redis.client.Pipeline) -> list[Any]:
-    """Run `pipe` in one round trip, loading the store script first only if Redis lacks it (a restart).
+    """Run `pipe` in one round trip, loading this module's scripts first only if Redis lacks them (a
+    restart).
 
     redis-py's own script objects ask Redis whether it has the script before every pipeline: a round trip
     per batch of states on the bridge's hot path."""
@@ -103,7 +117,8 @@ def execute(pipe: redis.client.Pipeline) -> list[Any]:
         index for index, result in enumerate(results) if isinstance(result, redis.exceptions.NoScriptError)
     ]
     if missing:
-        client().script_load(_STORE_STATE)
+        for script in _SCRIPTS.values():
+            client().script_load(script)
         again = client().pipeline(transaction=False)
         for index in missing:
             args, options = commands[index]
@@ -163,7 +178,15 @@ def _arrival(at: bytes | None) -> datetime | None:
 
 
 def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:
+    """Queue on `pipe`: the robots were heard `at` (epoch s) and are online; its result (`came_online`)
+    names those that were not online before."""
     pipe.zadd(LAST_SEEN, dict.fromkeys(names, at))
+    pipe.evalsha(_MARK_ONLINE_SHA, 1, ONLINE_SET, *names)
+
+
+def came_online(result: list[bytes]) -> list[str]:
+    """The robots that were not online before, from `mark_seen`'s result (the last of its pipeline)."""
+    return [name.decode() for name in result]
 
 
 def mark_offline(name: str) -> bool:

@@ -238,11 +238,11 @@ def test_a_stale_state_does_not_overwrite_the_status_written_to_the_database(
     assert (stored.battery_level, stored.pose_x) == (50.0, 3.0)
 
 
-def test_states_are_stored_after_redis_lost_the_store_script_and_counted_once(
+def test_states_are_stored_and_robots_come_online_after_redis_lost_the_scripts_and_counted_once(
     bridge: Bridge, make_robot: MakeRobot
 ) -> None:
-    """A Redis restart forgets loaded scripts: the bridge loads it again and stores the batch's states; the
-    counters that went out in the same round trip are not added twice."""
+    """A Redis restart forgets loaded scripts: the bridge loads them again, stores the batch's states and
+    brings its robots online; the counters that went out in the same round trip are not added twice."""
     robots = [make_robot(), make_robot()]
     bridge.directory.reload()
     messages = [state_message(robot, battery=41.0) for robot in robots]
@@ -254,6 +254,8 @@ def test_states_are_stored_after_redis_lost_the_store_script_and_counted_once(
     assert [livestate.latest_state(robot.name).payload for robot in robots] == [
         payload for _, payload in messages
     ]
+    assert all(_reload(robot).online for robot in robots)
+    assert bridge.steps.queued() >= {robot.name for robot in robots}
     assert _counter(metrics.MESSAGES_IN, topic="state") == counted_before + 2
 
 
