@@ -53,8 +53,9 @@ return added
 """
 
 # Scripts are called by their SHA, so a pipeline of them costs one round trip (`execute`).
-_SCRIPTS = {hashlib.sha1(script.encode()).hexdigest(): script for script in (_STORE_STATE, _MARK_ONLINE)}
-_STORE_STATE_SHA, _MARK_ONLINE_SHA = _SCRIPTS
+_SCRIPTS = (_STORE_STATE, _MARK_ONLINE)
+_STORE_STATE_SHA = hashlib.sha1(_STORE_STATE.encode()).hexdigest()
+_MARK_ONLINE_SHA = hashlib.sha1(_MARK_ONLINE.encode()).hexdigest()
 
 STALE, UNCHANGED, CHANGED = 0, 1, 2
 
@@ -117,7 +118,7 @@ def execute(pipe: redis.client.Pipeline) -> list[Any]:
         index for index, result in enumerate(results) if isinstance(result, redis.exceptions.NoScriptError)
     ]
     if missing:
-        for script in _SCRIPTS.values():
+        for script in _SCRIPTS:
             client().script_load(script)
         again = client().pipeline(transaction=False)
         for index in missing:
