@@ -7,6 +7,7 @@ from typing import Any
 
 import orjson
 from django.db import connection, transaction
+from psycopg.pq import TransactionStatus
 from psycopg.types.json import Jsonb
 
 
@@ -25,20 +26,29 @@ def _json_bytes(value: Any) -> bytes:
 
 @contextmanager
 def pipelined_transaction() -> Iterator[None]:
-    """A transaction block (`transaction.atomic`) whose statements psycopg sends in pipeline mode: a round
-    trip for BEGIN (psycopg syncs after it), one for each fetch of results, and one for the writes with
-    COMMIT, so a block that reads once and then writes costs three. Under load each round trip waits for a
-    turn on the CPU, twice.
+    """A transaction whose statements psycopg sends in pipeline mode, BEGIN with the first of them: a
+    block that reads once and then writes costs two round trips, one for BEGIN with the reads and one for
+    the writes with COMMIT. Under load each round trip waits for a turn on the CPU, twice.
 
-    The pipeline sits inside the block because psycopg syncs a pipeline, a round trip for nothing, at every
-    change of autocommit, which the block makes on entry and on exit. COMMIT is sent in the pipeline, with
-    the writes; the block's own commit then finds the transaction over and sends nothing (its on-commit
-    hooks still run). Inside a caller's transaction, or one marked for rollback, the block ends as usual.
+    Neither Django's transaction block nor psycopg's would do: each has psycopg sync the pipeline after
+    BEGIN, a round trip for nothing. So the connection stays in autocommit mode and the block sends BEGIN
+    and COMMIT itself, which Django does not see: inside it, on-commit hooks run at once and the ORM must
+    not open a transaction block of its own (deletes and bulk writes do), so its writes are plain SQL.
+    Inside a caller's transaction the block is a savepoint of it.
     """
     connection.ensure_connection()
-    outermost = not connection.in_atomic_block
-    with transaction.atomic(), connection.connection.pipeline():
-        yield
-        if outermost and not connection.needs_rollback:
-            with connection.cursor() as cursor:
-                cursor.execute("COMMIT")
+    if connection.in_atomic_block or not connection.get_autocommit():
+        with transaction.atomic():
+            yield
+        return
+    conn = connection.connection
+    try:
+        with connection.cursor() as cursor, conn.pipeline():
+            cursor.execute("BEGIN")
+            yield
+            cursor.execute("COMMIT")
+    except BaseException:
+        # The pipeline's sync has reported the error; a failed statement made PostgreSQL skip the rest.
+        if conn.pgconn.transaction_status in (TransactionStatus.INTRANS, TransactionStatus.INERROR):
+            conn.execute("ROLLBACK")
+        raise

@@ -363,16 +363,18 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
                 if result.mission.done:
                     outcome.finished.append(result.mission)
                 if result.delete_mission:
-                    Mission.objects.filter(name=mission.name).delete()
-            if result.delete_robot:
-                Robot.objects.filter(name=name).delete()
-                transaction.on_commit(lambda: livestate.forget(name))
-                return outcome
+                    _delete(DELETE_MISSION_SQL, mission.name)
+            robot_deleted = result.delete_robot
+            if robot_deleted:
+                _delete(DELETE_ROBOT_SQL, name)
+                break
             if mission is None or not (result.mission.done or result.delete_mission):
                 break
             upcoming = upcoming or _current_missions(name, count=2)
-        if view.state != robot_state:
+        if not robot_deleted and view.state != robot_state:
             Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
+    if robot_deleted:  # its live state goes once that is committed
+        transaction.on_commit(lambda: livestate.forget(name))
     return outcome
 
 
@@ -480,28 +482,50 @@ def _action_record(action: InstantAction) -> dispatch.ActionRecord:
     return dispatch.ActionRecord(**{f.name: getattr(action, f.name) for f in fields(dispatch.ActionRecord)})
 
 
+# The step's writes other than its mission's: plain SQL, because the ORM's bulk writes and deletes open
+# transaction blocks of their own, which `pipelined_transaction` does not allow.
+UPSERT_ACTIONS_SQL = f"""
+    INSERT INTO {InstantAction._meta.db_table}
+        (action_id, robot_id, action_type, mission, status, sent_at, send_count, created_at)
+    SELECT *, %s FROM unnest(
+        %s::varchar[], %s::varchar[], %s::varchar[], %s::varchar[], %s::varchar[], %s::timestamptz[],
+        %s::integer[]
+    )
+    ON CONFLICT (action_id) DO UPDATE
+    SET status = EXCLUDED.status, sent_at = EXCLUDED.sent_at, send_count = EXCLUDED.send_count
+"""
+DELETE_MISSION_SQL = f"DELETE FROM {Mission._meta.db_table} WHERE name = %(name)s"
+# A robot's instant actions go with it (its missions do not: a mission names its robot, and fails with it).
+DELETE_ROBOT_SQL = f"""
+    WITH actions AS (DELETE FROM {InstantAction._meta.db_table} WHERE robot_id = %(name)s)
+    DELETE FROM {Robot._meta.db_table} WHERE name = %(name)s
+"""
+
+
+def _delete(sql: str, name: str) -> None:
+    with connection.cursor() as cursor:
+        cursor.execute(sql, {"name": name})
+
+
 def _store_actions(
     robot: str, before: list[dispatch.ActionRecord], after: list[dispatch.ActionRecord]
 ) -> None:
-    """Insert new instant actions and save the ones whose status or send time changed."""
+    """Insert new instant actions and save the ones whose status or send time changed, in one statement."""
     known = {a.action_id: a for a in before}
     changed = [a for a in after if known.get(a.action_id) != a]
     if not changed:
         return
-    InstantAction.objects.bulk_create(
-        [
-            InstantAction(
-                action_id=a.action_id,
-                robot_id=robot,
-                action_type=a.action_type,
-                mission=a.mission,
-                status=a.status,
-                sent_at=a.sent_at,
-                send_count=a.send_count,
-            )
-            for a in changed
-        ],
-        update_conflicts=True,
-        unique_fields=["action_id"],
-        update_fields=["status", "sent_at", "send_count"],
-    )
+    with connection.cursor() as cursor:
+        cursor.execute(
+            UPSERT_ACTIONS_SQL,
+            [
+                timezone.now(),
+                [a.action_id for a in changed],
+                [robot] * len(changed),
+                [a.action_type for a in changed],
+                [a.mission for a in changed],
+                [a.status for a in changed],
+                [a.sent_at for a in changed],
+                [a.send_count for a in changed],
+            ],
+        )

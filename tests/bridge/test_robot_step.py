@@ -1,6 +1,7 @@
 """`missions.services.robot_step`: the dispatch step's I/O wrapper, against the real PostgreSQL and Redis.
 
 The robot's state is put into Redis by hand, as the bridge stores it; missions are created by the service.
+Outside a test's transaction, as the bridge and the workers step: the step sends its own BEGIN and COMMIT.
 """
 
 import time
@@ -27,6 +28,8 @@ from tests.dispatch.builders import check_schema, finished, on_order, robot_stat
 from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
 from workers import livestate
+
+pytestmark = pytest.mark.django_db(transaction=True)
 
 MakeRobot = Callable[..., Robot]
 NOW = timezone.now().replace(microsecond=0)
@@ -62,7 +65,7 @@ def put_state(
         digest=state_digest(parse_state(payload)),
         arrived_at=time.time() if arrived_at is None else arrived_at,
     )
-    pipe.execute()
+    livestate.execute(pipe)
 
 
 def step(robot: Robot, *, after: float = 0.0) -> StepOutcome:
@@ -162,7 +165,7 @@ def test_a_stored_state_that_no_longer_parses_counts_as_no_state(robot: Robot) -
         digest=digest,
         arrived_at=time.time(),
     )
-    pipe.execute()
+    livestate.execute(pipe)
     create("m1", robot)
 
     step(robot)
@@ -247,15 +250,12 @@ def test_a_running_mission_deleted_is_canceled_then_removed_and_the_next_one_sta
     assert [o.order_id for o in orders(outcome)] == ["m2-n0-r0"]
 
 
-def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_state(
-    robot: Robot, django_capture_on_commit_callbacks
-) -> None:
+def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_state(robot: Robot) -> None:
     create("m1", robot)
     step(robot)
     robot_delete(robot=Robot.objects.get(name=robot.name))
 
-    with django_capture_on_commit_callbacks(execute=True):
-        outcome = step(robot, after=1.0)
+    outcome = step(robot, after=1.0)
 
     mission = Mission.objects.get(name="m1")
     assert (mission.state, mission.failure_category) == (MissionState.FAILED, FailureCategory.ROBOT_APP)
@@ -286,18 +286,17 @@ def round_trips(trace: str) -> int:
     return sum(1 for turn in pairwise(senders) if turn == ("F", "B"))
 
 
-@pytest.mark.django_db(transaction=True)  # outside a test's transaction, as the bridge and workers step
-def test_a_step_that_starts_a_mission_costs_three_round_trips_to_postgresql(
+def test_a_step_that_starts_a_mission_costs_two_round_trips_to_postgresql(
     robot: Robot, tmp_path: Path
 ) -> None:
-    """BEGIN, the locking reads, the writes with COMMIT: under load each round trip waits for the CPU."""
+    """BEGIN with the locking reads, the writes with COMMIT: under load each round trip waits for the CPU."""
     InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
     create("m1", robot)
 
     with protocol_trace(tmp_path / "trace") as trace:
         outcome = step(robot)
 
-    assert round_trips(trace.read_text()) == 3
+    assert round_trips(trace.read_text()) == 2
     assert len(orders(outcome)) == 1
     assert Mission.objects.get(name="m1").state == MissionState.RUNNING  # committed
     assert connection.get_autocommit() and not connection.in_atomic_block

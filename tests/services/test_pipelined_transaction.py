@@ -4,8 +4,10 @@ Outside a test's transaction (as the bridge and the workers run it), so that wha
 what another connection would see.
 """
 
+import psycopg
 import pytest
-from django.db import connection, transaction
+from django.db import DatabaseError, connection, transaction
+from psycopg.pq import TransactionStatus
 
 from fleet.db import pipelined_transaction
 from robots.models import Robot
@@ -22,16 +24,30 @@ def stored_battery(name: str) -> float:
     return Robot.objects.get(name=name).battery_level
 
 
-def test_its_writes_are_committed_before_its_on_commit_hooks_run() -> None:
+def battery_seen_by_another_connection(name: str) -> float:
+    db = connection.settings_dict
+    sql = f"SELECT battery_level FROM {Robot._meta.db_table} WHERE name = %s"
+    with psycopg.connect(host=db["HOST"], port=db["PORT"], dbname=db["NAME"], user=db["USER"]) as other:
+        return other.execute(sql, [name]).fetchone()[0]
+
+
+def connection_is_back_in_autocommit() -> bool:
+    return (
+        connection.get_autocommit()
+        and not connection.in_atomic_block
+        and connection.connection.pgconn.transaction_status == TransactionStatus.IDLE
+    )
+
+
+def test_its_writes_are_committed_and_seen_by_other_connections() -> None:
     robot = RobotFactory(battery_level=10.0)
-    seen_by_hook: list[float] = []
 
     with pipelined_transaction():
         set_battery(robot.name, 55.0)
-        transaction.on_commit(lambda: seen_by_hook.append(stored_battery(robot.name)))
+        assert battery_seen_by_another_connection(robot.name) == 10.0  # not yet committed
 
-    assert seen_by_hook == [55.0]
-    assert connection.get_autocommit() and not connection.in_atomic_block
+    assert battery_seen_by_another_connection(robot.name) == 55.0
+    assert connection_is_back_in_autocommit()
 
 
 def test_an_error_in_the_block_rolls_its_writes_back() -> None:
@@ -42,15 +58,19 @@ def test_an_error_in_the_block_rolls_its_writes_back() -> None:
         raise RuntimeError("step failed")
 
     assert stored_battery(robot.name) == 10.0
+    assert connection_is_back_in_autocommit()
 
 
-def test_a_block_marked_for_rollback_commits_nothing() -> None:
+def test_a_failed_statement_rolls_back_the_writes_before_it_and_leaves_the_connection_usable() -> None:
     robot = RobotFactory(battery_level=10.0)
 
-    with pipelined_transaction():
+    with pytest.raises(DatabaseError), pipelined_transaction():
         set_battery(robot.name, 55.0)
-        transaction.set_rollback(True)
+        with connection.cursor() as cursor:
+            cursor.execute("SELECT 1 / 0")
+            cursor.fetchone()
 
+    assert connection_is_back_in_autocommit()
     assert stored_battery(robot.name) == 10.0
 
 
