@@ -19,7 +19,7 @@ PROC = Path("/proc")
 
 # Server process groups by command-line pattern (a regex searched in the command line).
 DEFAULT_PROCESS_GROUPS = {
-    "api": r"gunicorn|manage\.py runserver|uvicorn",
+    "api": r"granian|gunicorn|manage\.py runserver|uvicorn",
     "bridge": r"mqtt_bridge",
     "workers": r"celery.*\bworker\b",
     "beat": r"celery.*\bbeat\b",

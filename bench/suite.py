@@ -92,15 +92,20 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
     return {
         "broker": ["mosquitto", "-c", str(BROKER_CONFIG), "-p", str(BROKER_PORT)],
         "api": [
-            str(VENV_BIN / "gunicorn"),
-            "fleet.wsgi",
-            "--bind",
-            f"127.0.0.1:{API_PORT}",
+            str(VENV_BIN / "granian"),
+            "--interface",
+            "wsgi",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(API_PORT),
             "--workers",
             "2",
-            "--threads",
+            "--blocking-threads",
             "4",
-            "--no-control-socket",
+            "--no-ws",
+            "--respawn-failed-workers",
+            "fleet.wsgi:application",
         ],
         **{
             _numbered("bridge", i, bridges): [sys.executable, "manage.py", "mqtt_bridge", *share]

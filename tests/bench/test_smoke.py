@@ -1,7 +1,7 @@
 """A 10-second run of the benchmark against the real server processes (CI's smoke run).
 
 The server is the e2e harness's (bridge, worker, beat with the same environment and time compression)
-plus gunicorn on a free port, all against the test database; they run for this module only, so they
+plus the API (granian) on a free port, all against the test database; they run for this module only, so they
 never overlap the e2e session's own processes. Every message on the benchmark robots' topics, theirs
 and the server's, must pass the official VDA 5050 2.0.0 schema.
 """
@@ -44,19 +44,23 @@ def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> I
     logs = tmp_path_factory.mktemp("bench-stack-logs")
     stack = start_servers(logs)
     port = _free_port()
-    gunicorn = str(Path(PYTHON).with_name("gunicorn"))
+    granian = str(Path(PYTHON).with_name("granian"))
     stack.add(
         "api",
         [
-            gunicorn,
-            "fleet.wsgi",
-            "-b",
-            f"127.0.0.1:{port}",
-            "-w",
+            granian,
+            "--interface",
+            "wsgi",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--workers",
             "1",
-            "--threads",
+            "--blocking-threads",
             "4",
-            "--no-control-socket",
+            "--no-ws",
+            "fleet.wsgi:application",
         ],
     )
     base_url = f"http://127.0.0.1:{port}"
