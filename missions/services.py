@@ -340,6 +340,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
             battery_critical_level=critical_level,
             switch_teleop=switch_teleop,
         )
+        robot_deleted = False
         while True:
             mission = upcoming.pop(0) if upcoming else None
             result = dispatch.step(
@@ -364,9 +365,9 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
                     outcome.finished.append(result.mission)
                 if result.delete_mission:
                     _delete(DELETE_MISSION_SQL, mission.name)
-            robot_deleted = result.delete_robot
-            if robot_deleted:
+            if result.delete_robot:
                 _delete(DELETE_ROBOT_SQL, name)
+                robot_deleted = True
                 break
             if mission is None or not (result.mission.done or result.delete_mission):
                 break
