@@ -91,22 +91,7 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
     share = ["--share-group", f"bench-{uuid.uuid4().hex[:8]}"] if bridges > 1 else []
     return {
         "broker": ["mosquitto", "-c", str(BROKER_CONFIG), "-p", str(BROKER_PORT)],
-        "api": [
-            str(VENV_BIN / "granian"),
-            "--interface",
-            "wsgi",
-            "--host",
-            "127.0.0.1",
-            "--port",
-            str(API_PORT),
-            "--workers",
-            "2",
-            "--blocking-threads",
-            "4",
-            "--no-ws",
-            "--respawn-failed-workers",
-            "fleet.wsgi:application",
-        ],
+        "api": api_command(API_PORT),
         **{
             _numbered("bridge", i, bridges): [sys.executable, "manage.py", "mqtt_bridge", *share]
             for i in range(bridges)
@@ -118,6 +103,26 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
         "notify": _worker("notify", "bench-notify", 8),
         "beat": [CELERY, "-A", "fleet", "beat", "--schedule", "/tmp/mission-dispatch-bench-beat"],
     }
+
+
+def api_command(port: int, workers: int = 2) -> list[str]:
+    """The API as `deploy/Procfile` runs it (without its access log), on `port` of this host."""
+    return [
+        str(VENV_BIN / "granian"),
+        "--interface",
+        "wsgi",
+        "--host",
+        "127.0.0.1",
+        "--port",
+        str(port),
+        "--workers",
+        str(workers),
+        "--blocking-threads",
+        "4",
+        "--no-ws",
+        "--respawn-failed-workers",
+        "fleet.wsgi:application",
+    ]
 
 
 def _numbered(name: str, index: int, count: int) -> str:

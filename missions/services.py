@@ -27,6 +27,7 @@ from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tr
 from missions.models import Mission
 from robots.models import InstantAction, Robot
 from robots.selectors import robot_unfinished_instant_actions
+from robots.services import robot_rows_delete
 from vda5050.codec import parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
@@ -130,7 +131,7 @@ def mission_delete(*, mission: Mission) -> Mission | None:
             locked.needs_canceled = True
             locked.save(update_fields=["lifecycle", "needs_canceled", "updated_at"])
             return locked
-        locked.delete()
+        _mission_row_delete(locked.name)
     return None
 
 
@@ -364,9 +365,9 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
                 if result.mission.done:
                     outcome.finished.append(result.mission)
                 if result.delete_mission:
-                    _delete(DELETE_MISSION_SQL, mission.name)
+                    _mission_row_delete(mission.name)
             if result.delete_robot:
-                _delete(DELETE_ROBOT_SQL, name)
+                robot_rows_delete(name)
                 robot_deleted = True
                 break
             if mission is None or not (result.mission.done or result.delete_mission):
@@ -483,8 +484,8 @@ def _action_record(action: InstantAction) -> dispatch.ActionRecord:
     return dispatch.ActionRecord(**{f.name: getattr(action, f.name) for f in fields(dispatch.ActionRecord)})
 
 
-# The step's writes other than its mission's: plain SQL, because the ORM's bulk writes and deletes open
-# transaction blocks of their own, which `pipelined_transaction` does not allow.
+# The step's writes are plain SQL: the ORM's bulk writes and deletes open transaction blocks of their own,
+# which `pipelined_transaction` does not allow.
 UPSERT_ACTIONS_SQL = f"""
     INSERT INTO {InstantAction._meta.db_table}
         (action_id, robot_id, action_type, mission, status, sent_at, send_count, created_at)
@@ -495,17 +496,12 @@ UPSERT_ACTIONS_SQL = f"""
     ON CONFLICT (action_id) DO UPDATE
     SET status = EXCLUDED.status, sent_at = EXCLUDED.sent_at, send_count = EXCLUDED.send_count
 """
-DELETE_MISSION_SQL = f"DELETE FROM {Mission._meta.db_table} WHERE name = %(name)s"
-# A robot's instant actions go with it (its missions do not: a mission names its robot, and fails with it).
-DELETE_ROBOT_SQL = f"""
-    WITH actions AS (DELETE FROM {InstantAction._meta.db_table} WHERE robot_id = %(name)s)
-    DELETE FROM {Robot._meta.db_table} WHERE name = %(name)s
-"""
+MISSION_DELETE_SQL = f"DELETE FROM {Mission._meta.db_table} WHERE name = %s"
 
 
-def _delete(sql: str, name: str) -> None:
+def _mission_row_delete(name: str) -> None:
     with connection.cursor() as cursor:
-        cursor.execute(sql, {"name": name})
+        cursor.execute(MISSION_DELETE_SQL, [name])
 
 
 def _store_actions(

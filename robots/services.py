@@ -79,9 +79,24 @@ def robot_delete(*, robot: Robot) -> Robot | None:
             locked.save(update_fields=["lifecycle", "updated_at"])
             return locked
         name = locked.name
-        locked.delete()
+        robot_rows_delete(name)
         transaction.on_commit(lambda: livestate.forget(name))
     return None
+
+
+# Plain SQL: the dispatch step deletes robots inside `fleet.db.pipelined_transaction`, where the ORM's
+# delete (a transaction block of its own) is not allowed. A robot's instant actions go with it; its
+# missions stay (a mission names its robot, and fails with it).
+ROBOT_DELETE_SQL = f"""
+    WITH actions AS (DELETE FROM {InstantAction._meta.db_table} WHERE robot_id = %(name)s)
+    DELETE FROM {Robot._meta.db_table} WHERE name = %(name)s
+"""
+
+
+def robot_rows_delete(name: str) -> None:
+    """Delete the robot's rows; its live state is the caller's to forget once this is committed."""
+    with connection.cursor() as cursor:
+        cursor.execute(ROBOT_DELETE_SQL, {"name": name})
 
 
 def robot_teleop(*, robot: Robot, action: TeleopAction) -> Robot:

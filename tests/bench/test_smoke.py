@@ -27,6 +27,7 @@ from django.conf import settings
 from bench import report
 from bench.fleet import SETTLED_READINGS
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
+from bench.suite import api_command
 from tests.e2e.conftest import PYTHON, ROOT, start_servers, wait_for
 from tests.vda5050.schemas import validate_message
 from vda5050.codec import parse_state
@@ -44,25 +45,7 @@ def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> I
     logs = tmp_path_factory.mktemp("bench-stack-logs")
     stack = start_servers(logs)
     port = _free_port()
-    granian = str(Path(PYTHON).with_name("granian"))
-    stack.add(
-        "api",
-        [
-            granian,
-            "--interface",
-            "wsgi",
-            "--host",
-            "127.0.0.1",
-            "--port",
-            str(port),
-            "--workers",
-            "1",
-            "--blocking-threads",
-            "4",
-            "--no-ws",
-            "fleet.wsgi:application",
-        ],
-    )
+    stack.add("api", api_command(port, workers=1))
     base_url = f"http://127.0.0.1:{port}"
     try:
         wait_for(lambda: _answers(base_url), message=f"the API on {base_url}")

@@ -8,7 +8,6 @@ from contextlib import contextmanager
 from typing import Any
 
 import orjson
-import psycopg
 import pytest
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
@@ -27,6 +26,7 @@ from tests.bridge.messages import (
     visualization_message,
     worker_step_requested,
 )
+from tests.database import other_connection
 from tests.dispatch.builders import error
 from tests.vda5050.samples import full_factsheet
 from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
@@ -596,7 +596,7 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
     pipe = livestate.client().pipeline()
     livestate.mark_seen(pipe, [silent.name], now - 6.0)
     livestate.mark_seen(pipe, [talking.name], now - 4.0)
-    pipe.execute()
+    livestate.execute(pipe)
     for robot in (silent, talking, unheard):
         worker_step_requested(robot)
 
@@ -612,7 +612,7 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
 def held(sql: str, params: list[Any]) -> Iterator[None]:
     """`sql` (a locking statement) run and its locks held by another connection, as a step holds its rows;
     in this test's connection a lock wait fails after 2 s instead of hanging the test."""
-    other = psycopg.connect(host="127.0.0.1", dbname=connection.settings_dict["NAME"], user="postgres")
+    other = other_connection()
     with connection.cursor() as cursor:
         cursor.execute("SET lock_timeout = '2s'")  # a flush that waits fails the test instead of hanging it
     try:

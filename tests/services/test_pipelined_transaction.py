@@ -4,13 +4,13 @@ Outside a test's transaction (as the bridge and the workers run it), so that wha
 what another connection would see.
 """
 
-import psycopg
 import pytest
 from django.db import DatabaseError, connection, transaction
 from psycopg.pq import TransactionStatus
 
 from fleet.db import pipelined_transaction
 from robots.models import Robot
+from tests.database import other_connection
 from tests.factories import RobotFactory
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -25,9 +25,8 @@ def stored_battery(name: str) -> float:
 
 
 def battery_seen_by_another_connection(name: str) -> float:
-    db = connection.settings_dict
     sql = f"SELECT battery_level FROM {Robot._meta.db_table} WHERE name = %s"
-    with psycopg.connect(host=db["HOST"], port=db["PORT"], dbname=db["NAME"], user=db["USER"]) as other:
+    with other_connection() as other:
         return other.execute(sql, [name]).fetchone()[0]
 
 

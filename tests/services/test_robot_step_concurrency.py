@@ -59,7 +59,7 @@ def online_robot() -> Iterator[str]:
     livestate.store_state(
         pipe, name=name, payload=payload, timestamp_ms=1, header_id=1, digest=digest, arrived_at=time.time()
     )
-    pipe.execute()
+    livestate.execute(pipe)
     yield name
     livestate.forget(name)
 
