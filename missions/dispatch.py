@@ -18,6 +18,7 @@ from missions import engine
 from vda5050 import orders
 from vda5050 import state as vda_state
 from vda5050.models import ActionStatus, Error, ErrorLevel, InstantActionsContent, OrderContent, State
+from vda5050.topics import Topic
 
 # Robot states (robots.choices.RobotState) and lifecycles, as plain strings.
 IDLE, ON_TASK, CHARGING, TELEOP = "IDLE", "ON_TASK", "CHARGING", "TELEOP"
@@ -103,6 +104,11 @@ class Outgoing:
     """A message to publish to the robot: an order or instant actions (header stamped when sent)."""
 
     content: OrderContent | InstantActionsContent
+
+    @property
+    def topic(self) -> Topic:
+        """The topic it goes out on; each topic numbers its messages (headerId) on its own."""
+        return Topic.ORDER if isinstance(self.content, OrderContent) else Topic.INSTANT_ACTIONS
 
 
 @dataclass

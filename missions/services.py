@@ -31,7 +31,7 @@ from robots.services import robot_rows_delete
 from vda5050.codec import parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
-from vda5050.topics import RobotAddress
+from vda5050.topics import RobotAddress, Topic
 from workers import livestate
 from workers.wake import wake_robot
 
@@ -305,79 +305,132 @@ class StepOutcome:
     notifies: list[tuple[str, str]] = field(default_factory=list)
     finished: list[dispatch.MissionRecord] = field(default_factory=list)
     rejections: int = 0
+    header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
 
 
 def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
     """Advance robot `name`: its instant actions, its running mission, and the next ones in its queue.
 
     Runs under the robot's row lock, so steps of one robot are serialized across workers; everything it
-    decides is stored before the caller publishes, so a crash in between only delays a (re)send.
+    decides is stored before the caller publishes, so a crash in between only delays a (re)send. The
+    messages' headerIds are drawn in the same transaction, from counters on the robot's row.
     """
     now = now or timezone.now()
     outcome = StepOutcome()
-    with pipelined_transaction():
-        with connection.cursor() as robot_cursor, connection.cursor() as missions_cursor:
-            robot_cursor.execute(ROBOT_FOR_STEP_SQL, [name])
-            # The running mission and the next queued one: a step that ends a mission usually starts the next.
-            missions_cursor.execute(CURRENT_MISSIONS_SQL, [name, 2])
-            row = robot_cursor.fetchone()
-            upcoming = _mission_records(missions_cursor.fetchall())
-        if row is None:
-            return outcome
-        lifecycle, robot_state, online, critical_level, switch_teleop, actions_key, *address, has_actions = (
-            row
-        )
-        outcome.address = RobotAddress(*address)
-        outcome.instant_actions_key = actions_key
-        state, state_arrived_at = _live_state(name)
-        actions = (
-            [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
-        )
-        view = dispatch.RobotView(
-            name=name,
-            lifecycle=lifecycle,
-            state=robot_state,
-            online=online,
-            battery_critical_level=critical_level,
-            switch_teleop=switch_teleop,
-        )
-        robot_deleted = False
-        while True:
-            mission = upcoming.pop(0) if upcoming else None
-            result = dispatch.step(
-                now=now,
-                robot=view,
-                state=state,
-                state_arrived_at=state_arrived_at,
-                mission=mission,
-                actions=actions,
-                settings=dispatch_settings(),
-            )
-            _store_actions(name, actions, result.actions)
-            actions = [a for a in result.actions if a.status not in dispatch.FINAL]
-            outcome.messages.extend(result.messages)
-            outcome.rejections += int(result.rejected)
-            view = replace(view, state=result.robot_state)
-            if mission is not None and result.mission is not None:
-                _store_mission(mission, result.mission)
-                if result.notify is not None:
-                    outcome.notifies.append((mission.name, result.notify))
-                if result.mission.done:
-                    outcome.finished.append(result.mission)
-                if result.delete_mission:
-                    _mission_row_delete(mission.name)
-            if result.delete_robot:
-                robot_rows_delete(name)
-                robot_deleted = True
-                break
-            if mission is None or not (result.mission.done or result.delete_mission):
-                break
-            upcoming = upcoming or _current_missions(name, count=2)
-        if not robot_deleted and view.state != robot_state:
-            Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
+    # Open across the transaction: the headerIds drawn at its end are read once it has committed, from
+    # the reply that also brings the COMMIT's (reading them inside would cost a round trip of its own).
+    with connection.cursor() as header_cursor:
+        with pipelined_transaction():
+            robot_deleted = _robot_step_locked(name, now, outcome)
+            if robot_deleted:
+                outcome.messages.clear()  # the robot is gone: nothing more is sent to it
+            elif outcome.messages:
+                topics = [message.topic for message in outcome.messages]
+                header_cursor.execute(
+                    HEADER_IDS_DRAW_SQL,
+                    {
+                        "name": name,
+                        "orders": topics.count(Topic.ORDER),
+                        "instant_actions": topics.count(Topic.INSTANT_ACTIONS),
+                    },
+                )
+        if outcome.messages:
+            first = header_cursor.fetchone()
+            outcome.header_ids = _numbered(topics, dict(zip(HEADER_ID_TOPICS, first, strict=True)))
     if robot_deleted:  # its live state goes once that is committed
         transaction.on_commit(lambda: livestate.forget(name))
     return outcome
+
+
+def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> bool:
+    """The step inside its transaction, from taking the robot's row lock on, adding to `outcome`; True
+    if it deleted the robot."""
+    with connection.cursor() as robot_cursor, connection.cursor() as missions_cursor:
+        robot_cursor.execute(ROBOT_FOR_STEP_SQL, [name])
+        # The running mission and the next queued one: a step that ends a mission usually starts the next.
+        missions_cursor.execute(CURRENT_MISSIONS_SQL, [name, 2])
+        row = robot_cursor.fetchone()
+        upcoming = _mission_records(missions_cursor.fetchall())
+    if row is None:
+        return False
+    (
+        lifecycle,
+        robot_state,
+        online,
+        critical_level,
+        switch_teleop,
+        actions_key,
+        *address,
+        has_actions,
+    ) = row
+    outcome.address = RobotAddress(*address)
+    outcome.instant_actions_key = actions_key
+    state, state_arrived_at = _live_state(name)
+    actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
+    view = dispatch.RobotView(
+        name=name,
+        lifecycle=lifecycle,
+        state=robot_state,
+        online=online,
+        battery_critical_level=critical_level,
+        switch_teleop=switch_teleop,
+    )
+    robot_deleted = False
+    while True:
+        mission = upcoming.pop(0) if upcoming else None
+        result = dispatch.step(
+            now=now,
+            robot=view,
+            state=state,
+            state_arrived_at=state_arrived_at,
+            mission=mission,
+            actions=actions,
+            settings=dispatch_settings(),
+        )
+        _store_actions(name, actions, result.actions)
+        actions = [a for a in result.actions if a.status not in dispatch.FINAL]
+        outcome.messages.extend(result.messages)
+        outcome.rejections += int(result.rejected)
+        view = replace(view, state=result.robot_state)
+        if mission is not None and result.mission is not None:
+            _store_mission(mission, result.mission)
+            if result.notify is not None:
+                outcome.notifies.append((mission.name, result.notify))
+            if result.mission.done:
+                outcome.finished.append(result.mission)
+            if result.delete_mission:
+                _mission_row_delete(mission.name)
+        if result.delete_robot:
+            robot_rows_delete(name)
+            robot_deleted = True
+            break
+        if mission is None or not (result.mission.done or result.delete_mission):
+            break
+        upcoming = upcoming or _current_missions(name, count=2)
+    if not robot_deleted and view.state != robot_state:
+        Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
+    return robot_deleted
+
+
+# The first headerIds of a step's messages on each topic; the robot's row is the step's, locked.
+HEADER_ID_TOPICS = (Topic.ORDER, Topic.INSTANT_ACTIONS)
+HEADER_IDS_DRAW_SQL = f"""
+    UPDATE {Robot._meta.db_table}
+    SET next_order_header_id = next_order_header_id + %(orders)s,
+        next_instant_actions_header_id = next_instant_actions_header_id + %(instant_actions)s
+    WHERE name = %(name)s
+    RETURNING next_order_header_id - %(orders)s, next_instant_actions_header_id - %(instant_actions)s
+"""
+
+
+def _numbered(topics: list[Topic], first: dict[Topic, int]) -> list[int]:
+    """Consecutive headerIds per topic, from `first`, for messages on `topics` in sending order."""
+    following = dict(first)
+    header_ids = []
+    for topic in topics:
+        header_ids.append(following[topic])
+        following[topic] += 1
+    return header_ids
 
 
 # A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's

@@ -40,6 +40,11 @@ class Robot(models.Model):
     instant_actions_key = models.CharField(
         max_length=20, choices=InstantActionsKey.choices, default=InstantActionsKey.ACTIONS
     )
+    # The headerId of the next message on each topic the server sends the robot. The step that sends
+    # messages raises them in its own transaction, so they survive a Redis restart and follow the order in
+    # which the robot's steps committed.
+    next_order_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
+    next_instant_actions_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
 
     # --- status ---
     state = models.CharField(max_length=20, choices=RobotState.choices, default=RobotState.IDLE)

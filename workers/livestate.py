@@ -204,21 +204,7 @@ def last_seen(names: list[str]) -> dict[str, float | None]:
 def forget(name: str) -> None:
     """Drop everything known about a deleted robot."""
     pipe = client().pipeline()
-    pipe.delete(robot_key(name), header_key(name, "order"), header_key(name, "instantActions"))
+    pipe.delete(robot_key(name))
     pipe.srem(ONLINE_SET, name)
     pipe.zrem(LAST_SEEN, name)
     pipe.execute()
-
-
-def header_key(name: str, topic: str) -> str:
-    return f"{PREFIX}:header:{name}:{topic}"
-
-
-def next_header_ids(name: str, topics: list[str], pipe: redis.client.Pipeline | None = None) -> list[int]:
-    """VDA 5050 headerIds for messages about to be sent on `topics`: one counter per robot and topic, +1 per
-    message sent (resends included). Runs `pipe` (or a new one) with them, in one round trip."""
-    pipe = pipe if pipe is not None else client().pipeline(transaction=False)
-    for topic in topics:
-        pipe.incr(header_key(name, topic))
-    results = pipe.execute()
-    return [int(value) - 1 for value in results[len(results) - len(topics) :]]

@@ -63,16 +63,16 @@ def run_step(name: str, *, requested_at: float | None = None) -> None:
             state=mission.state,
             failure_category=mission.failure_category or "",
         )
-    if outcome.address is not None:
+    if outcome.messages:
+        assert outcome.address is not None  # a step sends messages only to a robot it found
         publish(
-            robot=name,
             address=outcome.address,
             instant_actions_key=outcome.instant_actions_key,
             messages=outcome.messages,
+            header_ids=outcome.header_ids,
             counters=counters,
         )
-    else:  # the robot is gone: nothing to send
-        counters.execute()
+    counters.execute()  # after the messages are out: the step's metrics wait, its robot does not
     if outcome.notifies:
         from workers.tasks import run_notify  # tasks import this module
 

@@ -27,6 +27,7 @@ from tests.bridge.messages import T0, wire
 from tests.dispatch.builders import check_schema, finished, on_order, robot_state
 from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
+from vda5050.topics import Topic
 from workers import livestate
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -140,6 +141,42 @@ def test_an_unaccepted_order_is_resent_by_a_later_step(robot: Robot) -> None:
     outcome = step(robot, after=60.0)
 
     assert orders(outcome) == [first]
+
+
+def header_ids(outcome: StepOutcome) -> list[tuple[Topic, int]]:
+    return [
+        (message.topic, header_id)
+        for message, header_id in zip(outcome.messages, outcome.header_ids, strict=True)
+    ]
+
+
+def test_each_topic_numbers_the_messages_sent_to_the_robot_from_0_and_a_resend_gets_the_next(
+    robot: Robot,
+) -> None:
+    create("m1", robot)
+    first = step(robot)  # the factsheet request queued at creation, and the mission's order
+    put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
+
+    resend = step(robot, after=60.0)
+
+    assert sorted(header_ids(first)) == [(Topic.INSTANT_ACTIONS, 0), (Topic.ORDER, 0)]
+    assert sorted(header_ids(resend)) == [(Topic.INSTANT_ACTIONS, 1), (Topic.ORDER, 1)]  # both unanswered
+    stored = Robot.objects.get(name=robot.name)
+    assert (stored.next_order_header_id, stored.next_instant_actions_header_id) == (2, 2)
+
+
+def test_header_ids_go_on_from_the_robots_row_when_redis_lost_everything_else(robot: Robot) -> None:
+    """Redis keeps nothing on disk; a restarted one must not make a robot see headerIds start again."""
+    Robot.objects.filter(name=robot.name).update(next_order_header_id=41, next_instant_actions_header_id=7)
+    livestate.forget(robot.name)  # what a restarted Redis holds about the robot: nothing
+    put_state(robot, header_id=1)
+    create("m1", robot)
+
+    outcome = step(robot)
+
+    assert sorted(header_ids(outcome)) == [(Topic.INSTANT_ACTIONS, 7), (Topic.ORDER, 41)]
+    stored = Robot.objects.get(name=robot.name)
+    assert (stored.next_order_header_id, stored.next_instant_actions_header_id) == (42, 8)
 
 
 def test_an_offline_robot_keeps_its_mission_queued_and_gets_nothing(robot: Robot) -> None:
@@ -297,7 +334,7 @@ def test_a_step_that_starts_a_mission_costs_two_round_trips_to_postgresql(
         outcome = step(robot)
 
     assert round_trips(trace.read_text()) == 2
-    assert len(orders(outcome)) == 1
+    assert header_ids(outcome) == [(Topic.ORDER, 0)]  # drawn in the second
     assert Mission.objects.get(name="m1").state == MissionState.RUNNING  # committed
     assert connection.get_autocommit() and not connection.in_atomic_block
 
