@@ -16,6 +16,7 @@ from typing import Any
 import orjson
 from django.conf import settings
 from django.db import IntegrityError, connection, transaction
+from django.db.backends.utils import CursorWrapper
 from django.db.models import JSONField
 from django.utils import timezone
 
@@ -325,18 +326,9 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
             if robot_deleted:
                 outcome.messages.clear()  # the robot is gone: nothing more is sent to it
             elif outcome.messages:
-                topics = [message.topic for message in outcome.messages]
-                header_cursor.execute(
-                    HEADER_IDS_DRAW_SQL,
-                    {
-                        "name": name,
-                        "orders": topics.count(Topic.ORDER),
-                        "instant_actions": topics.count(Topic.INSTANT_ACTIONS),
-                    },
-                )
+                _header_ids_draw(header_cursor, name, outcome.messages)
         if outcome.messages:
-            first = header_cursor.fetchone()
-            outcome.header_ids = _numbered(topics, dict(zip(HEADER_ID_TOPICS, first, strict=True)))
+            outcome.header_ids = _numbered(outcome.messages, header_cursor.fetchone())
     if robot_deleted:  # its live state goes once that is committed
         transaction.on_commit(lambda: livestate.forget(name))
     return outcome
@@ -413,7 +405,6 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> bool:
 
 
 # The first headerIds of a step's messages on each topic; the robot's row is the step's, locked.
-HEADER_ID_TOPICS = (Topic.ORDER, Topic.INSTANT_ACTIONS)
 HEADER_IDS_DRAW_SQL = f"""
     UPDATE {Robot._meta.db_table}
     SET next_order_header_id = next_order_header_id + %(orders)s,
@@ -423,13 +414,20 @@ HEADER_IDS_DRAW_SQL = f"""
 """
 
 
-def _numbered(topics: list[Topic], first: dict[Topic, int]) -> list[int]:
-    """Consecutive headerIds per topic, from `first`, for messages on `topics` in sending order."""
-    following = dict(first)
+def _header_ids_draw(cursor: CursorWrapper, name: str, messages: list[dispatch.Outgoing]) -> None:
+    """Raise the robot's counters by the messages on each topic; `_numbered` reads what this returns."""
+    topics = [message.topic for message in messages]
+    counts = {"orders": topics.count(Topic.ORDER), "instant_actions": topics.count(Topic.INSTANT_ACTIONS)}
+    cursor.execute(HEADER_IDS_DRAW_SQL, {"name": name, **counts})
+
+
+def _numbered(messages: list[dispatch.Outgoing], first: tuple[int, int]) -> list[int]:
+    """The messages' headerIds, consecutive per topic from `first` (order, instantActions)."""
+    following = {Topic.ORDER: first[0], Topic.INSTANT_ACTIONS: first[1]}
     header_ids = []
-    for topic in topics:
-        header_ids.append(following[topic])
-        following[topic] += 1
+    for message in messages:
+        header_ids.append(following[message.topic])
+        following[message.topic] += 1
     return header_ids
 
 

@@ -301,6 +301,20 @@ def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_
     assert outcome.messages == []
 
 
+def test_a_step_that_deletes_the_robot_sends_nothing_it_had_due(robot: Robot) -> None:
+    """The unanswered factsheet request and order are due again, but the robot and its headerIds are gone."""
+    create("m1", robot)
+    step(robot)
+    put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
+    robot_delete(robot=Robot.objects.get(name=robot.name))
+
+    outcome = step(robot, after=60.0)
+
+    assert (outcome.messages, outcome.header_ids) == ([], [])
+    assert Mission.objects.get(name="m1").state == MissionState.FAILED
+    assert not Robot.objects.filter(name=robot.name).exists()
+
+
 @contextmanager
 def protocol_trace(path: Path) -> Iterator[Path]:
     """libpq's trace of the messages this test's connection exchanges with PostgreSQL, written to `path`."""
