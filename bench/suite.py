@@ -36,6 +36,9 @@ CELERY = str(VENV_BIN / "celery")
 API_PORT = 5100
 BROKER_PORT = 1884
 BROKER_CONFIG = ROOT / "deploy" / "mosquitto.conf"
+# As in `deploy/Procfile`: on a machine it shares with the dispatch path (bridge, steps, PostgreSQL, broker),
+# the API gets the CPU only after them, so a burst of requests never queues the steps behind it.
+API_NICENESS = 10
 STACK_ENV = {
     "FLEET_DB_NAME": "mission_dispatch_bench",
     "FLEET_REDIS_URL": "redis://127.0.0.1:6379/3",
@@ -108,6 +111,9 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
 def api_command(port: int, workers: int = 2) -> list[str]:
     """The API as `deploy/Procfile` runs it (without its access log), on `port` of this host."""
     return [
+        "nice",
+        "-n",
+        str(API_NICENESS),
         str(VENV_BIN / "granian"),
         "--interface",
         "wsgi",

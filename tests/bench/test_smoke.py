@@ -9,11 +9,13 @@ and the server's, must pass the official VDA 5050 2.0.0 schema.
 from __future__ import annotations
 
 import json
+import os
 import socket
 import subprocess
 import threading
 import uuid
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -27,8 +29,8 @@ from django.conf import settings
 from bench import report
 from bench.fleet import SETTLED_READINGS
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
-from bench.suite import api_command
-from tests.e2e.conftest import PYTHON, ROOT, start_servers, wait_for
+from bench.suite import API_NICENESS, api_command
+from tests.e2e.conftest import PYTHON, ROOT, Stack, start_servers, wait_for
 from tests.vda5050.schemas import validate_message
 from vda5050.codec import parse_state
 
@@ -39,9 +41,16 @@ GENERATOR_TIMEOUT = 180  # s; generous, the machine is shared
 START_RATE = 5.0  # missions/s in the start phase
 
 
+@dataclass
+class Server:
+    """A complete server: API, bridge, worker and beat against the test database."""
+
+    stack: Stack
+    base_url: str
+
+
 @pytest.fixture(scope="module")
-def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """Base URL of a complete server: API, bridge, worker and beat against the test database."""
+def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
     logs = tmp_path_factory.mktemp("bench-stack-logs")
     stack = start_servers(logs)
     port = _free_port()
@@ -49,7 +58,7 @@ def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> I
     base_url = f"http://127.0.0.1:{port}"
     try:
         wait_for(lambda: _answers(base_url), message=f"the API on {base_url}")
-        yield base_url
+        yield Server(stack, base_url)
     finally:
         stack.stop()
         print(f"bench stack logs in {logs}")
@@ -89,7 +98,17 @@ class Capture:
         self.client.disconnect()
 
 
-def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_path: Path) -> None:
+def test_the_api_runs_below_the_dispatch_path_in_cpu_priority(server: Server) -> None:
+    """The stack's API (as `deploy/Procfile`'s) waits for the bridge whenever both want a CPU."""
+    api, bridge = (server.stack.processes[name].popen.pid for name in ("api", "bridge"))
+    bridge_niceness = os.getpriority(os.PRIO_PROCESS, bridge)
+    assert os.getpriority(os.PRIO_PROCESS, api) == min(bridge_niceness + API_NICENESS, 19)
+    workers = [int(pid) for pid in Path(f"/proc/{api}/task/{api}/children").read_text().split()]
+    assert workers, "the API has no worker processes"
+    assert {os.getpriority(os.PRIO_PROCESS, pid) for pid in workers} == {os.getpriority(os.PRIO_PROCESS, api)}
+
+
+def test_ten_second_run_completes_missions_with_valid_messages(server: Server, tmp_path: Path) -> None:
     run_id = uuid.uuid4().hex[:6]
     capture = Capture(f"bench-{run_id}-")
     try:
@@ -99,7 +118,7 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: str, tmp_
                 "-m",
                 "bench.fleet",
                 "--base-url",
-                server,
+                server.base_url,
                 "--mqtt-host",
                 settings.MQTT_HOST,
                 "--mqtt-port",
