@@ -38,7 +38,7 @@ BROKER_PORT = 1884
 BROKER_CONFIG = ROOT / "deploy" / "mosquitto.conf"
 # As in `deploy/Procfile`: on a machine it shares with the dispatch path (bridge, steps, PostgreSQL, broker),
 # the API gets the CPU only after them, so a burst of requests never queues the steps behind it.
-API_NICENESS = 10
+API_NICENESS = 5
 STACK_ENV = {
     "FLEET_DB_NAME": "mission_dispatch_bench",
     "FLEET_REDIS_URL": "redis://127.0.0.1:6379/3",
