@@ -34,7 +34,9 @@ def pipelined_transaction() -> Iterator[None]:
     BEGIN, a round trip for nothing. So the connection stays in autocommit mode and the block sends BEGIN
     and COMMIT itself, which Django does not see: inside it, on-commit hooks run at once and the ORM must
     not open a transaction block of its own (deletes and bulk writes do), so its writes are plain SQL.
-    Inside a caller's transaction the block is a savepoint of it.
+    Inside a caller's transaction the block is a savepoint of it. A statement's error reaches PostgreSQL's
+    reply only at the pipeline's sync, outside Django's cursor, so the block raises it as Django's error
+    (an IntegrityError, say), as a cursor would.
     """
     connection.ensure_connection()
     if connection.in_atomic_block or not connection.get_autocommit():
@@ -43,7 +45,7 @@ def pipelined_transaction() -> Iterator[None]:
         return
     conn = connection.connection
     try:
-        with connection.cursor() as cursor, conn.pipeline():
+        with connection.wrap_database_errors, connection.cursor() as cursor, conn.pipeline():
             cursor.execute("BEGIN")
             yield
             cursor.execute("COMMIT")

@@ -63,8 +63,8 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     )
     unaccepted = running.filter(order_accepted=False, order_sent_at__lte=order_resend)
     pending = Mission.objects.filter(state=MissionState.PENDING, deadline__lte=now)
-    # Queued missions no step has looked at, on robots that run nothing: a creation that raced with the
-    # end of the robot's previous mission.
+    # Queued missions no step has looked at, on robots that run nothing: a creation whose wake-up was lost
+    # (Redis away, or the API killed between its commit and the wake-up).
     unnoticed = Mission.objects.filter(
         state=MissionState.PENDING,
         waiting_reason__isnull=True,

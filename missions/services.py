@@ -7,7 +7,6 @@ engine only ever cancels RUNNING missions.
 
 import logging
 from collections.abc import Mapping
-from contextlib import nullcontext
 from dataclasses import dataclass, field, fields, replace
 from datetime import datetime, timedelta
 from functools import cache
@@ -72,10 +71,7 @@ def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, A
     if spec.get("needs_canceled"):
         _cancel_queued(mission)
     try:
-        # One statement needs no transaction of its own (BEGIN and COMMIT would double the round trips of
-        # the API's busiest call); inside a caller's, a savepoint keeps a duplicate name from aborting it.
-        with nullcontext() if transaction.get_autocommit() else transaction.atomic():
-            queued_behind_others = _mission_insert(mission)
+        queued_behind_others = _mission_insert(mission)
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
     if not queued_behind_others:
@@ -87,14 +83,18 @@ def _mission_insert(mission: Mission) -> bool:
     """Insert the new mission (plain SQL, see MISSION_INSERT_SQL); True if it is queued behind others.
 
     Queued behind others: the robot has an earlier unfinished mission, so the step that ends that one starts
-    this one. (Should that step look for the next mission before this one commits, beat's sweep starts it.)
+    this one. The robot's row lock (ROBOT_KEY_SHARE_SQL) keeps that true while a step ends that mission.
+    One round trip: BEGIN, the lock, the INSERT and COMMIT go out together; inside a caller's transaction,
+    a savepoint keeps a duplicate name from aborting it.
     """
     # pre_save: what Model.save() writes, auto_now(_add) timestamps included (set on `mission` too).
     values = _mission_db_values(
         {name: MISSION_FIELDS[name].pre_save(mission, True) for name in MISSION_INSERT_FIELDS}
     )
-    with connection.cursor() as cursor:
-        cursor.execute(MISSION_INSERT_SQL, values)
+    with connection.cursor() as lock_cursor, connection.cursor() as cursor:
+        with pipelined_transaction():
+            lock_cursor.execute(ROBOT_KEY_SHARE_SQL, [mission.robot])
+            cursor.execute(MISSION_INSERT_SQL, values)
         mission.queue_position, queued_behind_others = cursor.fetchone()
     # What Model.save() records: the instance is now a stored row.
     mission._state.adding = False
@@ -241,6 +241,13 @@ def _mission_columns(names: tuple[str, ...]) -> list[str]:
     return [connection.ops.quote_name(MISSION_FIELDS[name].column) for name in names]
 
 
+# A step holds its robot's row FOR UPDATE until it commits. The creation takes it FOR KEY SHARE first, so
+# that it waits for a step in flight and a later step waits for it: its INSERT's snapshot, taken after the
+# wait, holds what the step committed, and the step's holds the new mission. Without it, a mission created
+# while a step ended the robot's last one was seen by neither (the step read the queue before the INSERT
+# committed, the INSERT saw the ending mission still RUNNING), and waited 2-3 s for beat's sweep. FOR KEY
+# SHARE does not wait for the bridge's status writes (FOR NO KEY UPDATE). No row, no step to wait for.
+ROBOT_KEY_SHARE_SQL = f"SELECT 1 FROM {Robot._meta.db_table} WHERE name = %s FOR KEY SHARE"
 # The EXISTS is whether the new mission is queued behind others. It reads the statement's snapshot, which
 # does not hold the row being inserted.
 MISSION_INSERT_SQL = f"""

@@ -5,7 +5,7 @@ what another connection would see.
 """
 
 import pytest
-from django.db import DatabaseError, connection, transaction
+from django.db import DatabaseError, DataError, connection, transaction
 from psycopg.pq import TransactionStatus
 
 from fleet.db import pipelined_transaction
@@ -81,4 +81,17 @@ def test_inside_a_callers_transaction_its_writes_end_with_the_callers() -> None:
             set_battery(robot.name, 55.0)
         raise RuntimeError("the caller fails after the block")
 
+    assert stored_battery(robot.name) == 10.0
+
+
+def test_a_statement_whose_error_comes_with_the_sync_raises_djangos_error() -> None:
+    robot = RobotFactory(battery_level=10.0)
+
+    # Its result is not read inside the block: PostgreSQL's error arrives at the pipeline's sync.
+    with pytest.raises(DataError), pipelined_transaction():
+        set_battery(robot.name, 55.0)
+        with connection.cursor() as cursor:
+            cursor.execute("SELECT 1 / 0")
+
+    assert connection_is_back_in_autocommit()
     assert stored_battery(robot.name) == 10.0
