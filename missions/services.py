@@ -265,7 +265,8 @@ MISSION_INSERT_SQL = f"""
 # The step's reads are the hot path of the whole system. As plain SQL with only the columns the step needs,
 # read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
 # more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
-# lock what they read until the step commits.
+# lock what they read until the step commits; the robot's row FOR UPDATE, not NO KEY UPDATE, so that a
+# mission's creation (ROBOT_KEY_SHARE_SQL) waits for the step.
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,

@@ -12,7 +12,7 @@ from django.db import connection
 
 from fleet.api import ObjectError
 from missions.models import Mission
-from missions.services import mission_create
+from missions.services import CURRENT_MISSIONS_SQL, ROBOT_FOR_STEP_SQL, mission_create
 from robots.models import Robot
 from tests.database import other_connection
 from tests.factories import MissionFactory, RobotFactory, route_node
@@ -77,6 +77,14 @@ def wait_until(condition: Callable[[], bool], timeout: float = 10.0) -> bool:
     return False
 
 
+def step_in_flight(held: psycopg.Connection, mission: str, state: str) -> None:
+    """A step's reads on `held` (locking the robot and its current missions), then its write of `mission`,
+    not yet committed."""
+    held.execute(ROBOT_FOR_STEP_SQL, [ROBOT])
+    held.execute(CURRENT_MISSIONS_SQL, [ROBOT, 2])
+    held.execute(f"UPDATE {MISSIONS} SET state = %s WHERE name = %s", [state, mission])
+
+
 def waits_for_a_lock(pid: int) -> bool:
     with other_connection() as observer:
         row = observer.execute(
@@ -88,10 +96,8 @@ def waits_for_a_lock(pid: int) -> bool:
 def test_a_mission_created_while_a_step_ends_the_robots_last_one_wakes_the_robot(held, woken) -> None:
     RobotFactory(name=ROBOT)
     MissionFactory(name="last", robot=ROBOT, running=True)
-    # A step in flight: it holds the robot's row and has ended its last mission, not yet committed. Its read
-    # of the queue found nothing more to start.
-    held.execute(f"SELECT 1 FROM {ROBOTS} WHERE name = %s FOR UPDATE", [ROBOT])
-    held.execute(f"UPDATE {MISSIONS} SET state = 'COMPLETED' WHERE name = 'last'")
+    # Its read of the queue found nothing after "last", which it ends.
+    step_in_flight(held, "last", "COMPLETED")
 
     creation = Creation("next").start()
 
@@ -107,8 +113,7 @@ def test_a_mission_created_while_a_step_ends_the_robots_last_one_wakes_the_robot
 def test_a_mission_created_while_a_step_starts_the_one_before_it_does_not_wake_the_robot(held, woken) -> None:
     RobotFactory(name=ROBOT)
     MissionFactory(name="first", robot=ROBOT)
-    held.execute(f"SELECT 1 FROM {ROBOTS} WHERE name = %s FOR UPDATE", [ROBOT])
-    held.execute(f"UPDATE {MISSIONS} SET state = 'RUNNING' WHERE name = 'first'")
+    step_in_flight(held, "first", "RUNNING")
 
     creation = Creation("second").start()
 
