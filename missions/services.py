@@ -9,6 +9,7 @@ import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from datetime import datetime, timedelta
+from enum import Enum, auto
 from functools import cache
 from typing import Any
 
@@ -71,35 +72,36 @@ def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, A
     if spec.get("needs_canceled"):
         _cancel_queued(mission)
     try:
-        queued_behind_others = _mission_insert(mission)
+        next_up = _mission_insert(mission)
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
-    if not queued_behind_others:
+    if next_up:
         wake_robot(mission.robot)
     return mission
 
 
 def _mission_insert(mission: Mission) -> bool:
-    """Insert the new mission (plain SQL, see MISSION_INSERT_SQL); True if it is queued behind others.
+    """Insert the new mission (plain SQL); True if it is next up in the robot's queue (MISSION_NEXT_UP_SQL).
 
-    Queued behind others: the robot has an earlier unfinished mission, so the step that ends that one starts
-    this one. The robot's row lock (ROBOT_KEY_SHARE_SQL) keeps that true while a step ends that mission.
-    One round trip: BEGIN, the lock, the INSERT and COMMIT go out together; inside a caller's transaction,
+    One round trip: BEGIN, the INSERT, COMMIT and the check go out together; inside a caller's transaction,
     a savepoint keeps a duplicate name from aborting it.
     """
     # pre_save: what Model.save() writes, auto_now(_add) timestamps included (set on `mission` too).
     values = _mission_db_values(
         {name: MISSION_FIELDS[name].pre_save(mission, True) for name in MISSION_INSERT_FIELDS}
     )
-    with connection.cursor() as lock_cursor, connection.cursor() as cursor:
-        with pipelined_transaction():
-            lock_cursor.execute(ROBOT_KEY_SHARE_SQL, [mission.robot])
+    with connection.cursor() as cursor, connection.cursor() as next_up_cursor:
+        with pipelined_transaction() as after_commit:
             cursor.execute(MISSION_INSERT_SQL, values)
-        mission.queue_position, queued_behind_others = cursor.fetchone()
+            after_commit.append(
+                lambda: next_up_cursor.execute(MISSION_NEXT_UP_SQL, [mission.robot, mission.name])
+            )
+        (mission.queue_position,) = cursor.fetchone()
+        (next_up,) = next_up_cursor.fetchone()
     # What Model.save() records: the instance is now a stored row.
     mission._state.adding = False
     mission._state.db = connection.alias
-    return queued_behind_others
+    return next_up
 
 
 def mission_cancel(*, mission: Mission) -> Mission:
@@ -241,21 +243,25 @@ def _mission_columns(names: tuple[str, ...]) -> list[str]:
     return [connection.ops.quote_name(MISSION_FIELDS[name].column) for name in names]
 
 
-# A step holds its robot's row FOR UPDATE until it commits. The creation takes it FOR KEY SHARE first, so
-# that it waits for a step in flight and a later step waits for it: its INSERT's snapshot, taken after the
-# wait, holds what the step committed, and the step's holds the new mission. Without it, a mission created
-# while a step ended the robot's last one was seen by neither (the step read the queue before the INSERT
-# committed, the INSERT saw the ending mission still RUNNING), and waited 2-3 s for beat's sweep. FOR KEY
-# SHARE does not wait for the bridge's status writes (FOR NO KEY UPDATE). No row, no step to wait for.
-ROBOT_KEY_SHARE_SQL = f"SELECT 1 FROM {Robot._meta.db_table} WHERE name = %s FOR KEY SHARE"
-# The EXISTS is whether the new mission is queued behind others. It reads the statement's snapshot, which
-# does not hold the row being inserted.
 MISSION_INSERT_SQL = f"""
-    INSERT INTO {Mission._meta.db_table} AS new ({", ".join(_mission_columns(MISSION_INSERT_FIELDS))})
+    INSERT INTO {Mission._meta.db_table} ({", ".join(_mission_columns(MISSION_INSERT_FIELDS))})
     VALUES ({", ".join(["%s"] * len(MISSION_INSERT_FIELDS))})
-    RETURNING new.queue_position, EXISTS (
+    RETURNING queue_position
+"""
+# A creation and a step of the robot may each miss the other: the step reads the queue before the INSERT
+# commits, and then ends the robot's last mission. So each looks again once it has committed, in the same
+# round trip, and whichever commits last sees what the other did: the creation wakes the robot if its
+# mission is next up, the step steps again if a mission came while it ran (QUEUE_GREW_SQL). Next up: no
+# mission of the robot runs and none is queued before this one (whose step would start this one after it).
+MISSION_NEXT_UP_SQL = f"""
+    SELECT NOT EXISTS (
         SELECT 1 FROM {Mission._meta.db_table} m
-        WHERE m.robot = new.robot AND m.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
+        WHERE m.robot = %s AND (
+            m.state = '{MissionState.RUNNING}'
+            OR m.state = '{MissionState.PENDING}' AND m.queue_position < (
+                SELECT queue_position FROM {Mission._meta.db_table} WHERE name = %s
+            )
+        )
     )
 """
 
@@ -265,8 +271,7 @@ MISSION_INSERT_SQL = f"""
 # The step's reads are the hot path of the whole system. As plain SQL with only the columns the step needs,
 # read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
 # more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
-# lock what they read until the step commits; the robot's row FOR UPDATE, not NO KEY UPDATE, so that a
-# mission's creation (ROBOT_KEY_SHARE_SQL) waits for the step.
+# lock what they read until the step commits.
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
@@ -328,23 +333,42 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
     outcome = StepOutcome()
     # Open across the transaction: the headerIds drawn at its end are read once it has committed, from
     # the reply that also brings the COMMIT's (reading them inside would cost a round trip of its own).
-    with connection.cursor() as header_cursor:
-        with pipelined_transaction():
-            robot_deleted = _robot_step_locked(name, now, outcome)
-            if robot_deleted:
+    with connection.cursor() as header_cursor, connection.cursor() as queue_cursor:
+        with pipelined_transaction() as after_commit:
+            end = _robot_step_locked(name, now, outcome)
+            if end is StepEnd.ROBOT_DELETED:
                 outcome.messages.clear()  # the robot is gone: nothing more is sent to it
             elif outcome.messages:
                 _header_ids_draw(header_cursor, name, outcome.messages)
+            if end is StepEnd.QUEUE_EMPTY:
+                after_commit.append(lambda: queue_cursor.execute(QUEUE_GREW_SQL, [name]))
         if outcome.messages:
             outcome.header_ids = _numbered(outcome.messages, header_cursor.fetchone())
-    if robot_deleted:  # its live state goes once that is committed
+        if end is StepEnd.QUEUE_EMPTY and queue_cursor.fetchone()[0]:
+            wake_robot(name)  # a mission created while this step ran, which it did not see
+    if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
         transaction.on_commit(lambda: livestate.forget(name))
     return outcome
 
 
-def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> bool:
-    """The step inside its transaction, from taking the robot's row lock on, adding to `outcome`; True
-    if it deleted the robot."""
+class StepEnd(Enum):
+    """What a step's transaction left behind, for what the step does once it has committed."""
+
+    BUSY = auto()  # a mission runs or waits, or there is no robot of that name
+    QUEUE_EMPTY = auto()  # the robot's queue was empty when the step last read it
+    ROBOT_DELETED = auto()
+
+
+# Whether the robot has a queued mission, read after a step that found its queue empty (MISSION_NEXT_UP_SQL).
+QUEUE_GREW_SQL = f"""
+    SELECT EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} WHERE robot = %s AND state = '{MissionState.PENDING}'
+    )
+"""
+
+
+def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEnd:
+    """The step inside its transaction, from taking the robot's row lock on, adding to `outcome`."""
     with connection.cursor() as robot_cursor, connection.cursor() as missions_cursor:
         robot_cursor.execute(ROBOT_FOR_STEP_SQL, [name])
         # The running mission and the next queued one: a step that ends a mission usually starts the next.
@@ -352,7 +376,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> bool:
         row = robot_cursor.fetchone()
         upcoming = _mission_records(missions_cursor.fetchall())
     if row is None:
-        return False
+        return StepEnd.BUSY
     (
         lifecycle,
         robot_state,
@@ -375,7 +399,6 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> bool:
         battery_critical_level=critical_level,
         switch_teleop=switch_teleop,
     )
-    robot_deleted = False
     while True:
         mission = upcoming.pop(0) if upcoming else None
         result = dispatch.step(
@@ -402,14 +425,13 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> bool:
                 _mission_row_delete(mission.name)
         if result.delete_robot:
             robot_rows_delete(name)
-            robot_deleted = True
-            break
+            return StepEnd.ROBOT_DELETED
         if mission is None or not (result.mission.done or result.delete_mission):
             break
         upcoming = upcoming or _current_missions(name, count=2)
-    if not robot_deleted and view.state != robot_state:
+    if view.state != robot_state:
         Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
-    return robot_deleted
+    return StepEnd.QUEUE_EMPTY if mission is None else StepEnd.BUSY
 
 
 # The first headerIds of a step's messages on each topic; the robot's row is the step's, locked.

@@ -1,42 +1,51 @@
-"""mission_create against a robot's step and the bridge's status writes, outside a test's transaction (as the
-API runs it), each held open on a connection of its own."""
+"""mission_create racing a step of its robot, outside a test's transaction (as the API and the bridge run
+them), each on a connection of its own. A mission created while a step ends the robot's last one may be
+missed by both (the step read the queue before the INSERT committed, the INSERT saw the mission still
+RUNNING); whichever of the two commits last must see the other and wake the robot, or the mission waits
+for beat's sweep."""
 
 import threading
 import time
+import uuid
 from collections.abc import Callable, Iterator
 from typing import Any
 
-import psycopg
 import pytest
 from django.db import connection
 
+import missions.services
 from fleet.api import ObjectError
 from missions.models import Mission
-from missions.services import CURRENT_MISSIONS_SQL, ROBOT_FOR_STEP_SQL, mission_create
-from robots.models import Robot
+from missions.services import mission_create, robot_step
+from robots.models import InstantAction, Robot
+from robots.services import robot_create
+from tests.bridge.test_robot_step import orders, put_state
 from tests.database import other_connection
-from tests.factories import MissionFactory, RobotFactory, route_node
+from tests.dispatch.builders import finished
+from tests.factories import route_node
+from vda5050.models import ActionStatus
+from workers import livestate
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
-ROBOT = "carter01"
-ROBOTS = Robot._meta.db_table
 MISSIONS = Mission._meta.db_table
+CREATION_THREAD = "creation"
 
 
-def spec() -> dict[str, Any]:
-    return {"robot": ROBOT, "mission_tree": [route_node("goto")]}
+def spec(robot: str) -> dict[str, Any]:
+    return {"robot": robot, "mission_tree": [route_node("goto")]}
 
 
 class Creation:
-    """mission_create on a thread of its own, with its own database connection."""
+    """mission_create on a thread of its own (named CREATION_THREAD), with its own database connection."""
 
-    def __init__(self, name: str) -> None:
+    def __init__(self, name: str, robot: str) -> None:
         self.name = name
+        self.robot = robot
         self.backend_pid: int | None = None
         self.error: BaseException | None = None
         self._connected = threading.Event()
-        self._thread = threading.Thread(target=self._run)
+        self._thread = threading.Thread(target=self._run, name=CREATION_THREAD)
 
     def start(self) -> "Creation":
         self._thread.start()
@@ -52,7 +61,7 @@ class Creation:
             connection.ensure_connection()
             self.backend_pid = connection.connection.info.backend_pid
             self._connected.set()
-            mission_create(name=self.name, prefix=None, spec=spec())
+            mission_create(name=self.name, prefix=None, spec=spec(self.robot))
         except BaseException as error:  # the test reads it
             self.error = error
         finally:
@@ -61,11 +70,31 @@ class Creation:
 
 
 @pytest.fixture
-def held() -> Iterator[psycopg.Connection]:
-    """Another server process's open transaction (a step's, a status write's), rolled back at the end."""
-    with other_connection() as other:
-        yield other
-        other.rollback()
+def wakes(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str]]:
+    """(robot, thread) per wake-up the mission services asked for: the creation's thread or the step's."""
+    calls: list[tuple[str, str]] = []
+
+    def wake_robot(name: str) -> None:
+        calls.append((name, threading.current_thread().name))
+
+    monkeypatch.setattr(missions.services, "wake_robot", wake_robot)
+    return calls
+
+
+@pytest.fixture
+def robot(wakes: list[tuple[str, str]]) -> Iterator[Robot]:
+    """An online robot whose one mission, "last", runs, and whose latest state says its order is done: the
+    next step ends "last" and finds the queue empty."""
+    created = robot_create(name=f"race-{uuid.uuid4().hex[:10]}", prefix=None, spec={})
+    Robot.objects.filter(name=created.name).update(online=True)
+    InstantAction.objects.filter(robot=created).update(status=ActionStatus.FINISHED.value)
+    put_state(created, header_id=1)
+    mission_create(name="last", prefix=None, spec=spec(created.name))
+    [order] = orders(robot_step(name=created.name))
+    put_state(created, header_id=2, state=finished(order))
+    wakes.clear()
+    yield created
+    livestate.forget(created.name)
 
 
 def wait_until(condition: Callable[[], bool], timeout: float = 10.0) -> bool:
@@ -77,14 +106,6 @@ def wait_until(condition: Callable[[], bool], timeout: float = 10.0) -> bool:
     return False
 
 
-def step_in_flight(held: psycopg.Connection, mission: str, state: str) -> None:
-    """A step's reads on `held` (locking the robot and its current missions), then its write of `mission`,
-    not yet committed."""
-    held.execute(ROBOT_FOR_STEP_SQL, [ROBOT])
-    held.execute(CURRENT_MISSIONS_SQL, [ROBOT, 2])
-    held.execute(f"UPDATE {MISSIONS} SET state = %s WHERE name = %s", [state, mission])
-
-
 def waits_for_a_lock(pid: int) -> bool:
     with other_connection() as observer:
         row = observer.execute(
@@ -93,61 +114,86 @@ def waits_for_a_lock(pid: int) -> bool:
     return row is not None and row[0] == "Lock"
 
 
-def test_a_mission_created_while_a_step_ends_the_robots_last_one_wakes_the_robot(held, woken) -> None:
-    RobotFactory(name=ROBOT)
-    MissionFactory(name="last", robot=ROBOT, running=True)
-    # Its read of the queue found nothing after "last", which it ends.
-    step_in_flight(held, "last", "COMPLETED")
+def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_woken_by_the_step(
+    robot: Robot, wakes: list[tuple[str, str]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    creations: list[Creation] = []
+    read_queue = missions.services._current_missions
 
-    creation = Creation("next").start()
+    def read_queue_then_create(name: str, *, count: int) -> list[Any]:
+        """The step's look at the queue once "last" is done; the creation commits right after it."""
+        upcoming = read_queue(name, count=count)
+        if not creations:
+            creations.append(Creation("next", robot.name).start())
+            assert creations[0].done(timeout=10)
+        return upcoming
 
-    assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))  # for the step, not past it
-    assert woken == []
-    held.commit()
+    monkeypatch.setattr(missions.services, "_current_missions", read_queue_then_create)
+
+    outcome = robot_step(name=robot.name)
+
+    assert creations[0].error is None
+    assert [m.name for m in outcome.finished] == ["last"]
+    assert orders(outcome) == []  # "next" came after the step's look
+    # The creation saw "last" still running; the step's look after its commit saw "next".
+    assert wakes == [(robot.name, "MainThread")]
+    [order] = orders(robot_step(name=robot.name))  # the step it asked for
+    assert order.order_id.startswith("next-")
+
+
+def test_a_mission_whose_insert_waited_while_a_step_ended_the_last_one_wakes_the_robot(
+    robot: Robot, wakes: list[tuple[str, str]]
+) -> None:
+    with other_connection() as other:
+        # Another transaction's row of the same name, not committed: the creation's INSERT waits for it.
+        other.execute(f"CREATE TEMP TABLE copy AS SELECT * FROM {MISSIONS} WHERE name = 'last'")
+        other.execute("UPDATE copy SET name = 'next', state = 'PENDING'")
+        other.execute(f"INSERT INTO {MISSIONS} SELECT * FROM copy")
+        creation = Creation("next", robot.name).start()
+        assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))
+
+        outcome = robot_step(name=robot.name)  # "next" is not there yet for it
+
+        assert [m.name for m in outcome.finished] == ["last"]
+        assert wakes == []
+        other.rollback()
     assert creation.done(timeout=10)
     assert creation.error is None
-    assert woken == [ROBOT]  # the step ended the last mission and did not see this one: it needs a step
+    # Its INSERT began while "last" ran; its look after its commit found the robot idle.
+    assert wakes == [(robot.name, CREATION_THREAD)]
     assert Mission.objects.get(name="next").state == "PENDING"
 
 
-def test_a_mission_created_while_a_step_starts_the_one_before_it_does_not_wake_the_robot(held, woken) -> None:
-    RobotFactory(name=ROBOT)
-    MissionFactory(name="first", robot=ROBOT)
-    step_in_flight(held, "first", "RUNNING")
+def test_a_mission_created_while_the_robots_mission_runs_does_not_wake_it(
+    robot: Robot, wakes: list[tuple[str, str]]
+) -> None:
+    mission_create(name="next", prefix=None, spec=spec(robot.name))
 
-    creation = Creation("second").start()
-
-    assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))
-    held.commit()
-    assert creation.done(timeout=10)
-    assert creation.error is None
-    assert woken == []  # the step that ends "first" starts it
-
-
-def test_a_creation_does_not_wait_for_the_bridges_status_write(held, woken) -> None:
-    RobotFactory(name=ROBOT)
-    held.execute(f"UPDATE {ROBOTS} SET battery_level = 5 WHERE name = %s", [ROBOT])  # uncommitted
-
-    creation = Creation("m1").start()
-
-    assert creation.done(timeout=10)
-    assert creation.error is None
-    assert woken == [ROBOT]
+    assert wakes == []  # the step that ends "last" starts it
+    outcome = robot_step(name=robot.name)
+    assert [m.name for m in outcome.finished] == ["last"]
+    [order] = orders(outcome)
+    assert order.order_id.startswith("next-")
+    assert wakes == []
 
 
-def test_a_creation_for_a_robot_that_does_not_exist_yet_is_stored_and_wakes_it(woken) -> None:
-    mission = mission_create(name="m1", prefix=None, spec=spec())
+def test_a_creation_for_a_robot_that_does_not_exist_yet_is_stored_and_wakes_it(
+    wakes: list[tuple[str, str]],
+) -> None:
+    mission = mission_create(name="m1", prefix=None, spec=spec("carter01"))
 
     assert Mission.objects.get(name="m1").queue_position == mission.queue_position
-    assert woken == [ROBOT]
+    assert wakes == [("carter01", "MainThread")]
 
 
-def test_a_duplicate_name_is_an_object_error_and_leaves_the_connection_usable(woken) -> None:
-    mission_create(name="m1", prefix=None, spec=spec())
+def test_a_duplicate_name_is_an_object_error_and_leaves_the_connection_usable(
+    wakes: list[tuple[str, str]],
+) -> None:
+    mission_create(name="m1", prefix=None, spec=spec("carter01"))
 
     with pytest.raises(ObjectError, match="Object mission with name m1 already exists"):
-        mission_create(name="m1", prefix=None, spec=spec())
+        mission_create(name="m1", prefix=None, spec=spec("carter01"))
 
     assert Mission.objects.filter(name="m1").count() == 1
-    mission_create(name="m2", prefix=None, spec=spec())
-    assert woken == [ROBOT]  # m1 woke it; m2 is queued behind m1
+    mission_create(name="m2", prefix=None, spec=spec("carter01"))
+    assert wakes == [("carter01", "MainThread")]  # m1 woke it; m2 is queued behind m1
