@@ -21,7 +21,7 @@ from django.db.models import JSONField
 from django.utils import timezone
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
-from fleet.db import jsonb, pipelined_transaction
+from fleet.db import jsonb, pipelined_statements, pipelined_transaction
 from missions import dispatch
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
@@ -72,36 +72,34 @@ def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, A
     if spec.get("needs_canceled"):
         _cancel_queued(mission)
     try:
-        next_up = _mission_insert(mission)
+        queued_behind_others = _mission_insert(mission)
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
-    if next_up:
+    if not queued_behind_others:
         wake_robot(mission.robot)
     return mission
 
 
 def _mission_insert(mission: Mission) -> bool:
-    """Insert the new mission (plain SQL); True if it is next up in the robot's queue (MISSION_NEXT_UP_SQL).
+    """Insert the new mission (plain SQL, see MISSION_INSERT_SQL); True if it is queued behind others.
 
-    One round trip: BEGIN, the INSERT, COMMIT and the check go out together; inside a caller's transaction,
-    a savepoint keeps a duplicate name from aborting it.
+    Queued behind others: the robot has an earlier unfinished mission, so the step that ends that one starts
+    this one (ROBOT_QUEUE_LOCK_SQL keeps that true while a step ends that mission). One round trip, one
+    implicit transaction: the queue lock and the INSERT go out together, with no BEGIN and COMMIT.
     """
     # pre_save: what Model.save() writes, auto_now(_add) timestamps included (set on `mission` too).
     values = _mission_db_values(
         {name: MISSION_FIELDS[name].pre_save(mission, True) for name in MISSION_INSERT_FIELDS}
     )
-    with connection.cursor() as cursor, connection.cursor() as next_up_cursor:
-        with pipelined_transaction() as after_commit:
+    with connection.cursor() as lock_cursor, connection.cursor() as cursor:
+        with pipelined_statements():
+            lock_cursor.execute(ROBOT_QUEUE_SHARED_LOCK_SQL, [mission.robot])
             cursor.execute(MISSION_INSERT_SQL, values)
-            after_commit.append(
-                lambda: next_up_cursor.execute(MISSION_NEXT_UP_SQL, [mission.robot, mission.name])
-            )
-        (mission.queue_position,) = cursor.fetchone()
-        (next_up,) = next_up_cursor.fetchone()
+        mission.queue_position, queued_behind_others = cursor.fetchone()
     # What Model.save() records: the instance is now a stored row.
     mission._state.adding = False
     mission._state.db = connection.alias
-    return next_up
+    return queued_behind_others
 
 
 def mission_cancel(*, mission: Mission) -> Mission:
@@ -243,25 +241,26 @@ def _mission_columns(names: tuple[str, ...]) -> list[str]:
     return [connection.ops.quote_name(MISSION_FIELDS[name].column) for name in names]
 
 
+# A step may end the robot's last mission without seeing a mission created meanwhile (it read the queue
+# before the INSERT committed), while the INSERT saw the ending mission still RUNNING. So a step that found
+# the queue empty looks again after its COMMIT (QUEUE_GREW_SQL), and steps again if a mission came. A
+# creation whose INSERT committed only after that look would still be missed by both; the robot's queue
+# lock (an advisory lock, released when the transaction ends) rules that out. The creation holds it shared
+# from before its INSERT's snapshot to its commit, the step's look takes it exclusively: the look waits
+# for a creation in flight, and a creation that waited for the look has a snapshot that holds the step's
+# commit (the mission ended: the creation wakes the robot). Creations do not wait for each other.
+# The lock's keys: this number, and the robot's name hashed.
+ROBOT_QUEUE_LOCK_SPACE = 5050
+ROBOT_QUEUE_SHARED_LOCK_SQL = f"SELECT pg_advisory_xact_lock_shared({ROBOT_QUEUE_LOCK_SPACE}, hashtext(%s))"
+ROBOT_QUEUE_LOCK_SQL = f"SELECT pg_advisory_xact_lock({ROBOT_QUEUE_LOCK_SPACE}, hashtext(%s))"
+# The EXISTS is whether the new mission is queued behind others. It reads the statement's snapshot, which
+# does not hold the row being inserted.
 MISSION_INSERT_SQL = f"""
-    INSERT INTO {Mission._meta.db_table} ({", ".join(_mission_columns(MISSION_INSERT_FIELDS))})
+    INSERT INTO {Mission._meta.db_table} AS new ({", ".join(_mission_columns(MISSION_INSERT_FIELDS))})
     VALUES ({", ".join(["%s"] * len(MISSION_INSERT_FIELDS))})
-    RETURNING queue_position
-"""
-# A creation and a step of the robot may each miss the other: the step reads the queue before the INSERT
-# commits, and then ends the robot's last mission. So each looks again once it has committed, in the same
-# round trip, and whichever commits last sees what the other did: the creation wakes the robot if its
-# mission is next up, the step steps again if a mission came while it ran (QUEUE_GREW_SQL). Next up: no
-# mission of the robot runs and none is queued before this one (whose step would start this one after it).
-MISSION_NEXT_UP_SQL = f"""
-    SELECT NOT EXISTS (
+    RETURNING new.queue_position, EXISTS (
         SELECT 1 FROM {Mission._meta.db_table} m
-        WHERE m.robot = %s AND (
-            m.state = '{MissionState.RUNNING}'
-            OR m.state = '{MissionState.PENDING}' AND m.queue_position < (
-                SELECT queue_position FROM {Mission._meta.db_table} WHERE name = %s
-            )
-        )
+        WHERE m.robot = new.robot AND m.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
     )
 """
 
@@ -333,7 +332,11 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
     outcome = StepOutcome()
     # Open across the transaction: the headerIds drawn at its end are read once it has committed, from
     # the reply that also brings the COMMIT's (reading them inside would cost a round trip of its own).
-    with connection.cursor() as header_cursor, connection.cursor() as queue_cursor:
+    with (
+        connection.cursor() as header_cursor,
+        connection.cursor() as lock_cursor,
+        connection.cursor() as queue_cursor,
+    ):
         with pipelined_transaction() as after_commit:
             end = _robot_step_locked(name, now, outcome)
             if end is StepEnd.ROBOT_DELETED:
@@ -341,6 +344,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
             elif outcome.messages:
                 _header_ids_draw(header_cursor, name, outcome.messages)
             if end is StepEnd.QUEUE_EMPTY:
+                after_commit.append(lambda: lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name]))
                 after_commit.append(lambda: queue_cursor.execute(QUEUE_GREW_SQL, [name]))
         if outcome.messages:
             outcome.header_ids = _numbered(outcome.messages, header_cursor.fetchone())
@@ -359,7 +363,7 @@ class StepEnd(Enum):
     ROBOT_DELETED = auto()
 
 
-# Whether the robot has a queued mission, read after a step that found its queue empty (MISSION_NEXT_UP_SQL).
+# Whether the robot has a queued mission, read after a step that found its queue empty (ROBOT_QUEUE_LOCK_SQL).
 QUEUE_GREW_SQL = f"""
     SELECT EXISTS (
         SELECT 1 FROM {Mission._meta.db_table} WHERE robot = %s AND state = '{MissionState.PENDING}'

@@ -16,7 +16,7 @@ from django.db import connection
 import missions.services
 from fleet.api import ObjectError
 from missions.models import Mission
-from missions.services import mission_create, robot_step
+from missions.services import ROBOT_QUEUE_LOCK_SQL, mission_create, robot_step
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.bridge.test_robot_step import orders, put_state
@@ -30,6 +30,7 @@ pytestmark = pytest.mark.django_db(transaction=True)
 
 MISSIONS = Mission._meta.db_table
 CREATION_THREAD = "creation"
+STEP_THREAD = "step"
 
 
 def spec(robot: str) -> dict[str, Any]:
@@ -66,6 +67,34 @@ class Creation:
             self.error = error
         finally:
             self._connected.set()
+            connection.close()
+
+
+class Step:
+    """robot_step on a thread of its own (named STEP_THREAD), with its own database connection."""
+
+    def __init__(self, robot: str) -> None:
+        self.robot = robot
+        self.backend_pid: int | None = None
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name=STEP_THREAD)
+
+    def start(self) -> "Step":
+        self._thread.start()
+        return self
+
+    def done(self, timeout: float) -> bool:
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    def _run(self) -> None:
+        try:
+            connection.ensure_connection()
+            self.backend_pid = connection.connection.info.backend_pid
+            robot_step(name=self.robot)
+        except BaseException as error:  # the test reads it
+            self.error = error
+        finally:
             connection.close()
 
 
@@ -141,27 +170,43 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_woken_by_th
     assert order.order_id.startswith("next-")
 
 
-def test_a_mission_whose_insert_waited_while_a_step_ended_the_last_one_wakes_the_robot(
+def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_wakes_the_robot(
     robot: Robot, wakes: list[tuple[str, str]]
 ) -> None:
     with other_connection() as other:
-        # Another transaction's row of the same name, not committed: the creation's INSERT waits for it.
+        # Another transaction's row of the same name, not committed: the creation's INSERT waits for it,
+        # after the INSERT's snapshot (in which "last" runs) was taken.
         other.execute(f"CREATE TEMP TABLE copy AS SELECT * FROM {MISSIONS} WHERE name = 'last'")
         other.execute("UPDATE copy SET name = 'next', state = 'PENDING'")
         other.execute(f"INSERT INTO {MISSIONS} SELECT * FROM copy")
         creation = Creation("next", robot.name).start()
         assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))
+        step = Step(robot.name).start()
 
-        outcome = robot_step(name=robot.name)  # "next" is not there yet for it
+        assert wait_until(lambda: step.backend_pid is not None and waits_for_a_lock(step.backend_pid))
+        assert Mission.objects.get(name="last").state == "COMPLETED"  # the step has committed, and waits
+        other.rollback()
+    assert creation.done(timeout=10)
+    assert step.done(timeout=10)
+    assert (creation.error, step.error) == (None, None)
+    # The creation saw "last" running; the step's look after its commit waited for it, and saw "next".
+    assert wakes == [(robot.name, STEP_THREAD)]
 
-        assert [m.name for m in outcome.finished] == ["last"]
-        assert wakes == []
+
+def test_a_creation_that_waits_for_a_steps_look_at_the_queue_sees_what_the_step_committed(
+    robot: Robot, wakes: list[tuple[str, str]]
+) -> None:
+    with other_connection() as other:
+        # A step that has ended "last" and committed, looking at the queue (holding the queue lock).
+        other.execute(f"UPDATE {MISSIONS} SET state = 'COMPLETED' WHERE name = 'last'")
+        other.commit()
+        other.execute(ROBOT_QUEUE_LOCK_SQL, [robot.name])
+        creation = Creation("next", robot.name).start()
+        assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))
         other.rollback()
     assert creation.done(timeout=10)
     assert creation.error is None
-    # Its INSERT began while "last" ran; its look after its commit found the robot idle.
-    assert wakes == [(robot.name, CREATION_THREAD)]
-    assert Mission.objects.get(name="next").state == "PENDING"
+    assert wakes == [(robot.name, CREATION_THREAD)]  # its INSERT's snapshot holds "last" ended
 
 
 def test_a_mission_created_while_the_robots_mission_runs_does_not_wake_it(
