@@ -8,6 +8,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
+from functools import partial
 from typing import Any
 
 import pytest
@@ -37,18 +38,18 @@ def spec(robot: str) -> dict[str, Any]:
     return {"robot": robot, "mission_tree": [route_node("goto")]}
 
 
-class Creation:
-    """mission_create on a thread of its own (named CREATION_THREAD), with its own database connection."""
+class OnItsOwnConnection:
+    """A service call on a thread of its own, with its own database connection; `start` returns once the
+    connection is open (its server process's id in `backend_pid`)."""
 
-    def __init__(self, name: str, robot: str) -> None:
-        self.name = name
-        self.robot = robot
+    def __init__(self, call: Callable[[], object], thread_name: str) -> None:
+        self.call = call
         self.backend_pid: int | None = None
         self.error: BaseException | None = None
         self._connected = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=CREATION_THREAD)
+        self._thread = threading.Thread(target=self._run, name=thread_name)
 
-    def start(self) -> "Creation":
+    def start(self) -> "OnItsOwnConnection":
         self._thread.start()
         assert self._connected.wait(10)
         return self
@@ -62,7 +63,7 @@ class Creation:
             connection.ensure_connection()
             self.backend_pid = connection.connection.info.backend_pid
             self._connected.set()
-            mission_create(name=self.name, prefix=None, spec=spec(self.robot))
+            self.call()
         except BaseException as error:  # the test reads it
             self.error = error
         finally:
@@ -70,32 +71,15 @@ class Creation:
             connection.close()
 
 
-class Step:
-    """robot_step on a thread of its own (named STEP_THREAD), with its own database connection."""
+def creation(name: str, robot: str) -> OnItsOwnConnection:
+    """mission_create on the thread named CREATION_THREAD."""
+    call = partial(mission_create, name=name, prefix=None, spec=spec(robot))
+    return OnItsOwnConnection(call, CREATION_THREAD)
 
-    def __init__(self, robot: str) -> None:
-        self.robot = robot
-        self.backend_pid: int | None = None
-        self.error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name=STEP_THREAD)
 
-    def start(self) -> "Step":
-        self._thread.start()
-        return self
-
-    def done(self, timeout: float) -> bool:
-        self._thread.join(timeout)
-        return not self._thread.is_alive()
-
-    def _run(self) -> None:
-        try:
-            connection.ensure_connection()
-            self.backend_pid = connection.connection.info.backend_pid
-            robot_step(name=self.robot)
-        except BaseException as error:  # the test reads it
-            self.error = error
-        finally:
-            connection.close()
+def step(robot: str) -> OnItsOwnConnection:
+    """robot_step on the thread named STEP_THREAD."""
+    return OnItsOwnConnection(partial(robot_step, name=robot), STEP_THREAD)
 
 
 @pytest.fixture
@@ -146,14 +130,14 @@ def waits_for_a_lock(pid: int) -> bool:
 def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_woken_by_the_step(
     robot: Robot, wakes: list[tuple[str, str]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    creations: list[Creation] = []
+    creations: list[OnItsOwnConnection] = []
     read_queue = missions.services._current_missions
 
     def read_queue_then_create(name: str, *, count: int) -> list[Any]:
         """The step's look at the queue once "last" is done; the creation commits right after it."""
         upcoming = read_queue(name, count=count)
         if not creations:
-            creations.append(Creation("next", robot.name).start())
+            creations.append(creation("next", robot.name).start())
             assert creations[0].done(timeout=10)
         return upcoming
 
@@ -179,16 +163,16 @@ def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_wa
         other.execute(f"CREATE TEMP TABLE copy AS SELECT * FROM {MISSIONS} WHERE name = 'last'")
         other.execute("UPDATE copy SET name = 'next', state = 'PENDING'")
         other.execute(f"INSERT INTO {MISSIONS} SELECT * FROM copy")
-        creation = Creation("next", robot.name).start()
-        assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))
-        step = Step(robot.name).start()
+        creating = creation("next", robot.name).start()
+        assert wait_until(lambda: waits_for_a_lock(creating.backend_pid))
+        stepping = step(robot.name).start()
 
-        assert wait_until(lambda: step.backend_pid is not None and waits_for_a_lock(step.backend_pid))
+        assert wait_until(lambda: waits_for_a_lock(stepping.backend_pid))
         assert Mission.objects.get(name="last").state == "COMPLETED"  # the step has committed, and waits
         other.rollback()
-    assert creation.done(timeout=10)
-    assert step.done(timeout=10)
-    assert (creation.error, step.error) == (None, None)
+    assert creating.done(timeout=10)
+    assert stepping.done(timeout=10)
+    assert (creating.error, stepping.error) == (None, None)
     # The creation saw "last" running; the step's look after its commit waited for it, and saw "next".
     assert wakes == [(robot.name, STEP_THREAD)]
 
@@ -201,11 +185,11 @@ def test_a_creation_that_waits_for_a_steps_look_at_the_queue_sees_what_the_step_
         other.execute(f"UPDATE {MISSIONS} SET state = 'COMPLETED' WHERE name = 'last'")
         other.commit()
         other.execute(ROBOT_QUEUE_LOCK_SQL, [robot.name])
-        creation = Creation("next", robot.name).start()
-        assert wait_until(lambda: waits_for_a_lock(creation.backend_pid))
+        creating = creation("next", robot.name).start()
+        assert wait_until(lambda: waits_for_a_lock(creating.backend_pid))
         other.rollback()
-    assert creation.done(timeout=10)
-    assert creation.error is None
+    assert creating.done(timeout=10)
+    assert creating.error is None
     assert wakes == [(robot.name, CREATION_THREAD)]  # its INSERT's snapshot holds "last" ended
 
 
