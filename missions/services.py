@@ -326,10 +326,19 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
 
     Runs under the robot's row lock, so steps of one robot are serialized across workers; everything it
     decides is stored before the caller publishes, so a crash in between only delays a (re)send. The
-    messages' headerIds are drawn in the same transaction, from counters on the robot's row.
+    messages' headerIds are drawn in the same transaction, from counters on the robot's row. A mission
+    queued while the step ended the robot's last one gets a transaction more (QUEUE_GREW_SQL), at once:
+    a step requested instead would wait behind every other robot's.
     """
-    now = now or timezone.now()
     outcome = StepOutcome()
+    while _robot_step_transaction(name, now or timezone.now(), outcome):
+        pass
+    return outcome
+
+
+def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> bool:
+    """One transaction of a step, adding to `outcome`; True if the robot needs another one."""
+    first = len(outcome.messages)
     # Open across the transaction: the headerIds drawn at its end are read once it has committed, from
     # the reply that also brings the COMMIT's (reading them inside would cost a round trip of its own).
     with (
@@ -341,18 +350,18 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
             end = _robot_step_locked(name, now, outcome)
             if end is StepEnd.ROBOT_DELETED:
                 outcome.messages.clear()  # the robot is gone: nothing more is sent to it
-            elif outcome.messages:
-                _header_ids_draw(header_cursor, name, outcome.messages)
+            elif len(outcome.messages) > first:
+                _header_ids_draw(header_cursor, name, outcome.messages[first:])
             if end is StepEnd.QUEUE_EMPTY:
                 after_commit.append(lambda: lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name]))
                 after_commit.append(lambda: queue_cursor.execute(QUEUE_GREW_SQL, [name]))
-        if outcome.messages:
-            outcome.header_ids = _numbered(outcome.messages, header_cursor.fetchone())
-        if end is StepEnd.QUEUE_EMPTY and queue_cursor.fetchone()[0]:
-            wake_robot(name)  # a mission created while this step ran, which it did not see
-    if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
-        transaction.on_commit(lambda: livestate.forget(name))
-    return outcome
+        if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
+            outcome.header_ids.clear()
+            transaction.on_commit(lambda: livestate.forget(name))
+            return False
+        if len(outcome.messages) > first:
+            outcome.header_ids += _numbered(outcome.messages[first:], header_cursor.fetchone())
+        return end is StepEnd.QUEUE_EMPTY and queue_cursor.fetchone()[0]
 
 
 class StepEnd(Enum):

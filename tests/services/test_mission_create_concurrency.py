@@ -40,11 +40,12 @@ def spec(robot: str) -> dict[str, Any]:
 
 class OnItsOwnConnection:
     """A service call on a thread of its own, with its own database connection; `start` returns once the
-    connection is open (its server process's id in `backend_pid`)."""
+    connection is open (its server process's id in `backend_pid`), `result` is what the call returned."""
 
     def __init__(self, call: Callable[[], object], thread_name: str) -> None:
         self.call = call
         self.backend_pid: int | None = None
+        self.result: object = None
         self.error: BaseException | None = None
         self._connected = threading.Event()
         self._thread = threading.Thread(target=self._run, name=thread_name)
@@ -63,7 +64,7 @@ class OnItsOwnConnection:
             connection.ensure_connection()
             self.backend_pid = connection.connection.info.backend_pid
             self._connected.set()
-            self.call()
+            self.result = self.call()
         except BaseException as error:  # the test reads it
             self.error = error
         finally:
@@ -127,7 +128,7 @@ def waits_for_a_lock(pid: int) -> bool:
     return row is not None and row[0] == "Lock"
 
 
-def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_woken_by_the_step(
+def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_the_step(
     robot: Robot, wakes: list[tuple[str, str]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     creations: list[OnItsOwnConnection] = []
@@ -147,14 +148,16 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_woken_by_th
 
     assert creations[0].error is None
     assert [m.name for m in outcome.finished] == ["last"]
-    assert orders(outcome) == []  # "next" came after the step's look
-    # The creation saw "last" still running; the step's look after its commit saw "next".
-    assert wakes == [(robot.name, "MainThread")]
-    [order] = orders(robot_step(name=robot.name))  # the step it asked for
+    # "next" came after the step's look at the queue, and the creation saw "last" still running (no
+    # wake-up); the step's look after its commit saw "next", and its transaction more started it.
+    [order] = orders(outcome)
     assert order.order_id.startswith("next-")
+    assert outcome.header_ids == [1]  # the first order sent for "last" had 0
+    assert wakes == []
+    assert Mission.objects.get(name="next").state == "RUNNING"
 
 
-def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_wakes_the_robot(
+def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_starts_it(
     robot: Robot, wakes: list[tuple[str, str]]
 ) -> None:
     with other_connection() as other:
@@ -174,7 +177,9 @@ def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_wa
     assert stepping.done(timeout=10)
     assert (creating.error, stepping.error) == (None, None)
     # The creation saw "last" running; the step's look after its commit waited for it, and saw "next".
-    assert wakes == [(robot.name, STEP_THREAD)]
+    [order] = orders(stepping.result)
+    assert order.order_id.startswith("next-")
+    assert wakes == []
 
 
 def test_a_creation_that_waits_for_a_steps_look_at_the_queue_sees_what_the_step_committed(
