@@ -25,53 +25,41 @@ def _json_bytes(value: Any) -> bytes:
 
 
 @contextmanager
-def pipelined_statements() -> Iterator[None]:
-    """Statements psycopg sends in pipeline mode: all of them in one round trip, unless a result is read
-    in between (which syncs the pipeline). On a connection in autocommit mode, the statements up to a sync
-    form one implicit transaction, committed at the sync: a block that only writes needs no BEGIN and
-    COMMIT of its own. Inside a caller's transaction the block is a savepoint of it.
-
-    A statement's error reaches PostgreSQL's reply only at the sync, outside Django's cursor, so the block
-    raises it as Django's error (an IntegrityError, say), as a cursor would.
-    """
-    connection.ensure_connection()
-    if connection.in_atomic_block or not connection.get_autocommit():
-        with transaction.atomic():
-            yield
-        return
-    conn = connection.connection
-    try:
-        with connection.wrap_database_errors, conn.pipeline():
-            yield
-    except BaseException:
-        # The pipeline's sync has reported the error; a failed statement made PostgreSQL skip the rest.
-        if conn.pgconn.transaction_status in (TransactionStatus.INTRANS, TransactionStatus.INERROR):
-            conn.execute("ROLLBACK")
-        raise
-
-
-@contextmanager
 def pipelined_transaction() -> Iterator[list[Callable[[], None]]]:
-    """A transaction whose statements psycopg sends in pipeline mode (`pipelined_statements`), BEGIN with
-    the first of them: a block that reads once and then writes costs two round trips, one for BEGIN with
-    the reads and one for the writes with COMMIT. Under load each round trip waits for a turn on the CPU.
+    """A transaction whose statements psycopg sends in pipeline mode, BEGIN with the first of them: a
+    block that reads once and then writes costs two round trips, one for BEGIN with the reads and one for
+    the writes with COMMIT. Under load each round trip waits for a turn on the CPU, twice.
 
     Neither Django's transaction block nor psycopg's would do: each has psycopg sync the pipeline after
     BEGIN, a round trip for nothing. So the connection stays in autocommit mode and the block sends BEGIN
     and COMMIT itself, which Django does not see: inside it, on-commit hooks run at once and the ORM must
     not open a transaction block of its own (deletes and bulk writes do), so its writes are plain SQL.
+    Inside a caller's transaction the block is a savepoint of it. A statement's error reaches PostgreSQL's
+    reply only at the pipeline's sync, outside Django's cursor, so the block raises it as Django's error
+    (an IntegrityError, say), as a cursor would.
 
     The block gets a list to which it may add statements to run right after COMMIT, in the same round
     trip (callables that execute them): their snapshot holds the block's writes as committed, and what
-    other transactions committed by then. Inside a caller's transaction they run at the block's end.
+    other transactions committed by then. Inside a caller's transaction they run at the savepoint's end.
     """
     after_commit: list[Callable[[], None]] = []
-    own_transaction = connection.get_autocommit() and not connection.in_atomic_block
-    with pipelined_statements(), connection.cursor() as cursor:
-        if own_transaction:
-            cursor.execute("BEGIN")
-        yield after_commit
-        if own_transaction:
-            cursor.execute("COMMIT")
+    connection.ensure_connection()
+    if connection.in_atomic_block or not connection.get_autocommit():
+        with transaction.atomic():
+            yield after_commit
         for execute in after_commit:
             execute()
+        return
+    conn = connection.connection
+    try:
+        with connection.wrap_database_errors, connection.cursor() as cursor, conn.pipeline():
+            cursor.execute("BEGIN")
+            yield after_commit
+            cursor.execute("COMMIT")
+            for execute in after_commit:
+                execute()
+    except BaseException:
+        # The pipeline's sync has reported the error; a failed statement made PostgreSQL skip the rest.
+        if conn.pgconn.transaction_status in (TransactionStatus.INTRANS, TransactionStatus.INERROR):
+            conn.execute("ROLLBACK")
+        raise

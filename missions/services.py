@@ -7,6 +7,7 @@ engine only ever cancels RUNNING missions.
 
 import logging
 from collections.abc import Mapping
+from contextlib import nullcontext
 from dataclasses import dataclass, field, fields, replace
 from datetime import datetime, timedelta
 from enum import Enum, auto
@@ -21,7 +22,7 @@ from django.db.models import JSONField
 from django.utils import timezone
 
 from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
-from fleet.db import jsonb, pipelined_statements, pipelined_transaction
+from fleet.db import jsonb, pipelined_transaction
 from missions import dispatch
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
@@ -84,17 +85,19 @@ def _mission_insert(mission: Mission) -> bool:
     """Insert the new mission (plain SQL, see MISSION_INSERT_SQL); True if it is queued behind others.
 
     Queued behind others: the robot has an earlier unfinished mission, so the step that ends that one starts
-    this one (ROBOT_QUEUE_LOCK_SQL keeps that true while a step ends that mission). One round trip, one
-    implicit transaction: the queue lock and the INSERT go out together, with no BEGIN and COMMIT.
+    this one (ROBOT_QUEUE_LOCK_SQL keeps that true while a step ends that mission). One statement in
+    autocommit mode: one round trip, and the transaction ends on the server without waiting for the API.
     """
     # pre_save: what Model.save() writes, auto_now(_add) timestamps included (set on `mission` too).
     values = _mission_db_values(
         {name: MISSION_FIELDS[name].pre_save(mission, True) for name in MISSION_INSERT_FIELDS}
     )
-    with connection.cursor() as lock_cursor, connection.cursor() as cursor:
-        with pipelined_statements():
-            lock_cursor.execute(ROBOT_QUEUE_SHARED_LOCK_SQL, [mission.robot])
-            cursor.execute(MISSION_INSERT_SQL, values)
+    # Inside a caller's transaction, a savepoint keeps a duplicate name from aborting it.
+    with (
+        nullcontext() if transaction.get_autocommit() else transaction.atomic(),
+        connection.cursor() as cursor,
+    ):
+        cursor.execute(MISSION_INSERT_SQL, values)
         mission.queue_position, queued_behind_others = cursor.fetchone()
     # What Model.save() records: the instance is now a stored row.
     mission._state.adding = False
@@ -244,24 +247,22 @@ def _mission_columns(names: tuple[str, ...]) -> list[str]:
 # A step may end the robot's last mission without seeing a mission created meanwhile (it read the queue
 # before the INSERT committed), while the INSERT saw the ending mission still RUNNING. So a step that found
 # the queue empty looks again after its COMMIT (QUEUE_GREW_SQL), and steps again if a mission came. A
-# creation whose INSERT committed only after that look would still be missed by both; the robot's queue
-# lock (an advisory lock, released when the transaction ends) rules that out. The creation holds it shared
-# from before its INSERT's snapshot to its commit, the step's look takes it exclusively: the look waits
-# for a creation in flight, and a creation that waited for the look has a snapshot that holds the step's
-# commit (the mission ended: the creation wakes the robot). Creations do not wait for each other.
-# The lock's keys: this number, and the robot's name hashed.
-ROBOT_QUEUE_LOCK_SPACE = 5050
-ROBOT_QUEUE_SHARED_LOCK_SQL = f"SELECT pg_advisory_xact_lock_shared({ROBOT_QUEUE_LOCK_SPACE}, hashtext(%s))"
+# creation that committed only after that look would still be missed by both; the robot's queue lock (an
+# advisory lock, released when the transaction ends) rules that out. The creation takes it shared before it
+# looks at the queue and holds it to its commit; the step's look takes it exclusively. So the look waits
+# for a creation in flight, and a creation that waited for the look sees the step's commit (the mission
+# ended: the creation wakes the robot). Creations do not wait for each other.
+ROBOT_QUEUE_LOCK_SPACE = 5050  # the lock's first key; the second is the robot's name hashed
 ROBOT_QUEUE_LOCK_SQL = f"SELECT pg_advisory_xact_lock({ROBOT_QUEUE_LOCK_SPACE}, hashtext(%s))"
-# The EXISTS is whether the new mission is queued behind others. It reads the statement's snapshot, which
-# does not hold the row being inserted.
+# mission_queued_behind() (migration 0005) takes the lock shared, then looks at the queue with a snapshot of
+# its own: the statement's is taken before anything in it runs, the lock included.
 MISSION_INSERT_SQL = f"""
-    INSERT INTO {Mission._meta.db_table} AS new ({", ".join(_mission_columns(MISSION_INSERT_FIELDS))})
-    VALUES ({", ".join(["%s"] * len(MISSION_INSERT_FIELDS))})
-    RETURNING new.queue_position, EXISTS (
-        SELECT 1 FROM {Mission._meta.db_table} m
-        WHERE m.robot = new.robot AND m.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
+    WITH new AS (
+        INSERT INTO {Mission._meta.db_table} ({", ".join(_mission_columns(MISSION_INSERT_FIELDS))})
+        VALUES ({", ".join(["%s"] * len(MISSION_INSERT_FIELDS))})
+        RETURNING robot, queue_position
     )
+    SELECT queue_position, mission_queued_behind(robot, queue_position) FROM new
 """
 
 

@@ -12,7 +12,7 @@ from functools import partial
 from typing import Any
 
 import pytest
-from django.db import connection
+from django.db import connection, transaction
 
 import missions.services
 from fleet.api import ObjectError
@@ -128,6 +128,12 @@ def waits_for_a_lock(pid: int) -> bool:
     return row is not None and row[0] == "Lock"
 
 
+def holds_an_advisory_lock(pid: int) -> bool:
+    with other_connection() as observer:
+        sql = "SELECT EXISTS (SELECT 1 FROM pg_locks WHERE pid = %s AND locktype = 'advisory' AND granted)"
+        return observer.execute(sql, [pid]).fetchone()[0]
+
+
 def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_the_step(
     robot: Robot, wakes: list[tuple[str, str]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -160,19 +166,21 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_
 def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_starts_it(
     robot: Robot, wakes: list[tuple[str, str]]
 ) -> None:
-    with other_connection() as other:
-        # Another transaction's row of the same name, not committed: the creation's INSERT waits for it,
-        # after the INSERT's snapshot (in which "last" runs) was taken.
-        other.execute(f"CREATE TEMP TABLE copy AS SELECT * FROM {MISSIONS} WHERE name = 'last'")
-        other.execute("UPDATE copy SET name = 'next', state = 'PENDING'")
-        other.execute(f"INSERT INTO {MISSIONS} SELECT * FROM copy")
-        creating = creation("next", robot.name).start()
-        assert wait_until(lambda: waits_for_a_lock(creating.backend_pid))
-        stepping = step(robot.name).start()
+    release = threading.Event()
 
-        assert wait_until(lambda: waits_for_a_lock(stepping.backend_pid))
-        assert Mission.objects.get(name="last").state == "COMPLETED"  # the step has committed, and waits
-        other.rollback()
+    def create_and_hold() -> None:
+        """The creation inside a transaction that stays open (holding the queue lock) until released."""
+        with transaction.atomic():
+            mission_create(name="next", prefix=None, spec=spec(robot.name))
+            assert release.wait(10)
+
+    creating = OnItsOwnConnection(create_and_hold, CREATION_THREAD).start()
+    assert wait_until(lambda: holds_an_advisory_lock(creating.backend_pid))
+    stepping = step(robot.name).start()
+
+    assert wait_until(lambda: waits_for_a_lock(stepping.backend_pid))
+    assert Mission.objects.get(name="last").state == "COMPLETED"  # the step has committed, and waits
+    release.set()
     assert creating.done(timeout=10)
     assert stepping.done(timeout=10)
     assert (creating.error, stepping.error) == (None, None)
@@ -180,6 +188,28 @@ def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_st
     [order] = orders(stepping.result)
     assert order.order_id.startswith("next-")
     assert wakes == []
+
+
+def test_a_mission_whose_insert_waited_while_a_step_ended_the_last_one_wakes_the_robot(
+    robot: Robot, wakes: list[tuple[str, str]]
+) -> None:
+    with other_connection() as other:
+        # Another transaction's row of the same name, not committed: the creation's INSERT waits for it.
+        other.execute(f"CREATE TEMP TABLE copy AS SELECT * FROM {MISSIONS} WHERE name = 'last'")
+        other.execute("UPDATE copy SET name = 'next', state = 'PENDING'")
+        other.execute(f"INSERT INTO {MISSIONS} SELECT * FROM copy")
+        creating = creation("next", robot.name).start()
+        assert wait_until(lambda: waits_for_a_lock(creating.backend_pid))
+
+        outcome = robot_step(name=robot.name)  # "next" is not there yet for it
+
+        assert [m.name for m in outcome.finished] == ["last"]
+        assert orders(outcome) == []
+        other.rollback()
+    assert creating.done(timeout=10)
+    assert creating.error is None
+    # Its INSERT's snapshot was taken while "last" ran; its look at the queue, after the wait, was not.
+    assert wakes == [(robot.name, CREATION_THREAD)]
 
 
 def test_a_creation_that_waits_for_a_steps_look_at_the_queue_sees_what_the_step_committed(

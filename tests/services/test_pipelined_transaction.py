@@ -1,5 +1,4 @@
-"""`fleet.db.pipelined_transaction` (the step's transaction block) and `pipelined_statements` (the mission
-creation's), against the real PostgreSQL.
+"""`fleet.db.pipelined_transaction`: the step's transaction block, against the real PostgreSQL.
 
 Outside a test's transaction (as the bridge and the workers run it), so that what it commits or not is
 what another connection would see.
@@ -9,7 +8,7 @@ import pytest
 from django.db import DataError, connection, transaction
 from psycopg.pq import TransactionStatus
 
-from fleet.db import pipelined_statements, pipelined_transaction
+from fleet.db import pipelined_transaction
 from robots.models import Robot
 from tests.database import other_connection
 from tests.factories import RobotFactory
@@ -120,28 +119,3 @@ def test_inside_a_callers_transaction_statements_after_commit_run_at_the_blocks_
             after_commit.append(lambda: cursor.execute(sql, [robot.name]))
             set_battery(robot.name, 55.0)
         assert cursor.fetchone() == (55.0,)
-
-
-def test_pipelined_statements_are_one_transaction_without_begin_and_commit() -> None:
-    robot = RobotFactory(battery_level=10.0)
-
-    with connection.cursor() as first, connection.cursor() as second:
-        with pipelined_statements():
-            first.execute("SELECT pg_current_xact_id()")
-            set_battery(robot.name, 55.0)
-            second.execute("SELECT pg_current_xact_id()")
-        assert first.fetchone() == second.fetchone()
-
-    assert battery_seen_by_another_connection(robot.name) == 55.0
-    assert connection_is_back_in_autocommit()
-
-
-def test_a_failed_pipelined_statement_rolls_back_the_ones_before_it() -> None:
-    robot = RobotFactory(battery_level=10.0)
-
-    with pytest.raises(DataError), pipelined_statements(), connection.cursor() as cursor:
-        set_battery(robot.name, 55.0)
-        cursor.execute("SELECT 1 / 0")
-
-    assert stored_battery(robot.name) == 10.0
-    assert connection_is_back_in_autocommit()
