@@ -353,6 +353,27 @@ def test_a_step_that_starts_a_mission_costs_two_round_trips_to_postgresql(
     assert connection.get_autocommit() and not connection.in_atomic_block
 
 
+def test_a_step_that_ends_the_robots_last_mission_looks_at_the_queue_again_in_the_commits_round_trip(
+    robot: Robot, tmp_path: Path
+) -> None:
+    """BEGIN with the locking reads, the queue read again once the mission ended, then the writes with
+    COMMIT and, in the same round trip, the queue lock and the look at the queue after the commit."""
+    InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
+    create("m1", robot)
+    [order] = orders(step(robot))
+    put_state(robot, header_id=2, state=finished(order))
+
+    with protocol_trace(tmp_path / "trace") as trace:
+        outcome = step(robot, after=1.0)
+
+    statements = trace.read_text()
+    assert round_trips(statements) == 3
+    assert "pg_advisory_xact_lock(" in statements and "SELECT EXISTS" in statements  # the look was made
+    assert [m.name for m in outcome.finished] == ["m1"]
+    assert outcome.messages == []
+    assert connection.get_autocommit() and not connection.in_atomic_block
+
+
 def test_a_step_of_an_unknown_robot_does_nothing(db: None) -> None:
     outcome = robot_step(name="nobody-here", now=NOW)
 
