@@ -1,7 +1,7 @@
 """Database parameters and transactions the project's plain-SQL hot paths share."""
 
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -25,7 +25,7 @@ def _json_bytes(value: Any) -> bytes:
 
 
 @contextmanager
-def pipelined_transaction() -> Iterator[list[Callable[[], None]]]:
+def pipelined_transaction() -> Iterator[None]:
     """A transaction whose statements psycopg sends in pipeline mode, BEGIN with the first of them: a
     block that reads once and then writes costs two round trips, one for BEGIN with the reads and one for
     the writes with COMMIT. Under load each round trip waits for a turn on the CPU, twice.
@@ -37,27 +37,18 @@ def pipelined_transaction() -> Iterator[list[Callable[[], None]]]:
     Inside a caller's transaction the block is a savepoint of it. A statement's error reaches PostgreSQL's
     reply only at the pipeline's sync, outside Django's cursor, so the block raises it as Django's error
     (an IntegrityError, say), as a cursor would.
-
-    The block gets a list to which it may add statements to run right after COMMIT, in the same round
-    trip (callables that execute them): their snapshot holds the block's writes as committed, and what
-    other transactions committed by then. Inside a caller's transaction they run at the savepoint's end.
     """
-    after_commit: list[Callable[[], None]] = []
     connection.ensure_connection()
     if connection.in_atomic_block or not connection.get_autocommit():
         with transaction.atomic():
-            yield after_commit
-        for execute in after_commit:
-            execute()
+            yield
         return
     conn = connection.connection
     try:
         with connection.wrap_database_errors, connection.cursor() as cursor, conn.pipeline():
             cursor.execute("BEGIN")
-            yield after_commit
+            yield
             cursor.execute("COMMIT")
-            for execute in after_commit:
-                execute()
     except BaseException:
         # The pipeline's sync has reported the error; a failed statement made PostgreSQL skip the rest.
         if conn.pgconn.transaction_status in (TransactionStatus.INTRANS, TransactionStatus.INERROR):

@@ -245,13 +245,15 @@ def _mission_columns(names: tuple[str, ...]) -> list[str]:
 
 
 # A step may end the robot's last mission without seeing a mission created meanwhile (it read the queue
-# before the INSERT committed), while the INSERT saw the ending mission still RUNNING. So a step that found
-# the queue empty looks again after its COMMIT (QUEUE_GREW_SQL), and steps again if a mission came. A
-# creation that committed only after that look would still be missed by both; the robot's queue lock (an
-# advisory lock, released when the transaction ends) rules that out. The creation takes it shared before it
-# looks at the queue and holds it to its commit; the step's look takes it exclusively. So the look waits
-# for a creation in flight, and a creation that waited for the look sees the step's commit (the mission
-# ended: the creation wakes the robot). Creations do not wait for each other.
+# before the INSERT committed), while the INSERT saw the ending mission still RUNNING. The robot's queue lock
+# (an advisory lock, released when the transaction ends) settles which of the two starts it. The creation
+# takes the lock shared before it looks at the queue and holds it to its commit; a step that ended the
+# robot's last mission takes it exclusively before its COMMIT, then looks at the queue again
+# (QUEUE_GREW_SQL) and steps again if a mission came. So the step waits for a creation in flight and sees
+# its mission (the creation, looking before the step's commit, saw the ending mission and did not wake the
+# robot), and a creation that waited for the step sees the step's commit and wakes the robot (the step's
+# look, before that creation committed, did not see it). Either way one of them starts the mission, never
+# both. Creations do not wait for each other, nor for anything a step holds.
 ROBOT_QUEUE_LOCK_SPACE = 5050  # the lock's first key; the second is the robot's name hashed
 ROBOT_QUEUE_LOCK_SQL = f"SELECT pg_advisory_xact_lock({ROBOT_QUEUE_LOCK_SPACE}, hashtext(%s))"
 # mission_queued_behind() (migration 0005) takes the lock shared, then looks at the queue with a snapshot of
@@ -340,40 +342,42 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
 def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> bool:
     """One transaction of a step, adding to `outcome`; True if the robot needs another one."""
     first = len(outcome.messages)
-    # Open across the transaction: the headerIds drawn at its end are read once it has committed, from
-    # the reply that also brings the COMMIT's (reading them inside would cost a round trip of its own).
+    # Open across the transaction: the headerIds drawn at its end and the look at the queue are read once
+    # it has committed, from the reply that also brings the COMMIT's (reading them inside would cost a
+    # round trip of its own).
     with (
         connection.cursor() as header_cursor,
         connection.cursor() as lock_cursor,
         connection.cursor() as queue_cursor,
     ):
-        with pipelined_transaction() as after_commit:
+        with pipelined_transaction():
             end = _robot_step_locked(name, now, outcome)
             if end is StepEnd.ROBOT_DELETED:
                 outcome.messages.clear()  # the robot is gone: nothing more is sent to it
             elif len(outcome.messages) > first:
                 _header_ids_draw(header_cursor, name, outcome.messages[first:])
-            if end is StepEnd.QUEUE_EMPTY:
-                after_commit.append(lambda: lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name]))
-                after_commit.append(lambda: queue_cursor.execute(QUEUE_GREW_SQL, [name]))
+            if end is StepEnd.QUEUE_RAN_DRY:
+                lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name])
+                queue_cursor.execute(QUEUE_GREW_SQL, [name])
         if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
             outcome.header_ids.clear()
             transaction.on_commit(lambda: livestate.forget(name))
             return False
         if len(outcome.messages) > first:
             outcome.header_ids += _numbered(outcome.messages[first:], header_cursor.fetchone())
-        return end is StepEnd.QUEUE_EMPTY and queue_cursor.fetchone()[0]
+        return end is StepEnd.QUEUE_RAN_DRY and queue_cursor.fetchone()[0]
 
 
 class StepEnd(Enum):
-    """What a step's transaction left behind, for what the step does once it has committed."""
+    """What a step's transaction left behind, for what the step does before and after its COMMIT."""
 
-    BUSY = auto()  # a mission runs or waits, or there is no robot of that name
-    QUEUE_EMPTY = auto()  # the robot's queue was empty when the step last read it
+    SETTLED = auto()  # a mission runs or waits, the robot had none, or there is no robot of that name
+    QUEUE_RAN_DRY = auto()  # the step ended the robot's last mission: its queue was empty when last read
     ROBOT_DELETED = auto()
 
 
-# Whether the robot has a queued mission, read after a step that found its queue empty (ROBOT_QUEUE_LOCK_SQL).
+# Whether the robot has a queued mission, read under the robot's queue lock (ROBOT_QUEUE_LOCK_SQL) by a step
+# that ended the robot's last mission.
 QUEUE_GREW_SQL = f"""
     SELECT EXISTS (
         SELECT 1 FROM {Mission._meta.db_table} WHERE robot = %s AND state = '{MissionState.PENDING}'
@@ -390,7 +394,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEn
         row = robot_cursor.fetchone()
         upcoming = _mission_records(missions_cursor.fetchall())
     if row is None:
-        return StepEnd.BUSY
+        return StepEnd.SETTLED
     (
         lifecycle,
         robot_state,
@@ -413,6 +417,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEn
         battery_critical_level=critical_level,
         switch_teleop=switch_teleop,
     )
+    ended_a_mission = False
     while True:
         mission = upcoming.pop(0) if upcoming else None
         result = dispatch.step(
@@ -442,10 +447,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEn
             return StepEnd.ROBOT_DELETED
         if mission is None or not (result.mission.done or result.delete_mission):
             break
+        ended_a_mission = True
         upcoming = upcoming or _current_missions(name, count=2)
     if view.state != robot_state:
         Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
-    return StepEnd.QUEUE_EMPTY if mission is None else StepEnd.BUSY
+    return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED
 
 
 # The first headerIds of a step's messages on each topic; the robot's row is the step's, locked.

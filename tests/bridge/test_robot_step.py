@@ -356,8 +356,8 @@ def test_a_step_that_starts_a_mission_costs_two_round_trips_to_postgresql(
 def test_a_step_that_ends_the_robots_last_mission_looks_at_the_queue_again_in_the_commits_round_trip(
     robot: Robot, tmp_path: Path
 ) -> None:
-    """BEGIN with the locking reads, the queue read again once the mission ended, then the writes with
-    COMMIT and, in the same round trip, the queue lock and the look at the queue after the commit."""
+    """BEGIN with the locking reads, the queue read again once the mission ended, then the writes, the
+    queue lock, the look at the queue and COMMIT, in one round trip."""
     InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
     create("m1", robot)
     [order] = orders(step(robot))
@@ -369,6 +369,7 @@ def test_a_step_that_ends_the_robots_last_mission_looks_at_the_queue_again_in_th
     statements = trace.read_text()
     assert round_trips(statements) == 3
     assert "pg_advisory_xact_lock(" in statements and "SELECT EXISTS" in statements  # the look was made
+    assert statements.index("SELECT EXISTS") < statements.index("COMMIT")  # sent inside the transaction
     assert [m.name for m in outcome.finished] == ["m1"]
     assert outcome.messages == []
     assert connection.get_autocommit() and not connection.in_atomic_block

@@ -17,7 +17,7 @@ from django.db import connection, transaction
 import missions.services
 from fleet.api import ObjectError
 from missions.models import Mission
-from missions.services import ROBOT_QUEUE_LOCK_SQL, mission_create, robot_step
+from missions.services import ROBOT_QUEUE_LOCK_SPACE, mission_create, robot_step
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.bridge.test_robot_step import orders, put_state
@@ -154,8 +154,8 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_
 
     assert creations[0].error is None
     assert [m.name for m in outcome.finished] == ["last"]
-    # "next" came after the step's look at the queue, and the creation saw "last" still running (no
-    # wake-up); the step's look after its commit saw "next", and its transaction more started it.
+    # "next" came after the step's read of the queue, and the creation saw "last" still running (no
+    # wake-up); the step's look under the queue lock saw "next", and its transaction more started it.
     [order] = orders(outcome)
     assert order.order_id.startswith("next-")
     assert outcome.header_ids == [1]  # the first order sent for "last" had 0
@@ -179,12 +179,12 @@ def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_st
     stepping = step(robot.name).start()
 
     assert wait_until(lambda: waits_for_a_lock(stepping.backend_pid))
-    assert Mission.objects.get(name="last").state == "COMPLETED"  # the step has committed, and waits
+    assert Mission.objects.get(name="last").state == "RUNNING"  # the step waits before its COMMIT
     release.set()
     assert creating.done(timeout=10)
     assert stepping.done(timeout=10)
     assert (creating.error, stepping.error) == (None, None)
-    # The creation saw "last" running; the step's look after its commit waited for it, and saw "next".
+    # The creation saw "last" running; the step's look waited for it, and saw "next".
     [order] = orders(stepping.result)
     assert order.order_id.startswith("next-")
     assert wakes == []
@@ -212,20 +212,28 @@ def test_a_mission_whose_insert_waited_while_a_step_ended_the_last_one_wakes_the
     assert wakes == [(robot.name, CREATION_THREAD)]
 
 
-def test_a_creation_that_waits_for_a_steps_look_at_the_queue_sees_what_the_step_committed(
+def test_a_creation_that_waits_for_a_steps_queue_lock_wakes_the_robot_and_the_step_does_not_start_it(
     robot: Robot, wakes: list[tuple[str, str]]
 ) -> None:
     with other_connection() as other:
-        # A step that has ended "last" and committed, looking at the queue (holding the queue lock).
-        other.execute(f"UPDATE {MISSIONS} SET state = 'COMPLETED' WHERE name = 'last'")
-        other.commit()
-        other.execute(ROBOT_QUEUE_LOCK_SQL, [robot.name])
+        # Another holder of the lock shared (as a creation in flight): the step that ends "last" waits
+        # for it before its look and COMMIT, and the creation that comes next queues behind the step.
+        lock = "SELECT pg_advisory_xact_lock_shared(%s, hashtext(%s))"
+        other.execute(lock, [ROBOT_QUEUE_LOCK_SPACE, robot.name])
+        stepping = step(robot.name).start()
+        assert wait_until(lambda: waits_for_a_lock(stepping.backend_pid))
         creating = creation("next", robot.name).start()
         assert wait_until(lambda: waits_for_a_lock(creating.backend_pid))
         other.rollback()
+    assert stepping.done(timeout=10)
     assert creating.done(timeout=10)
-    assert creating.error is None
-    assert wakes == [(robot.name, CREATION_THREAD)]  # its INSERT's snapshot holds "last" ended
+    assert (stepping.error, creating.error) == (None, None)
+    # The step's look came before the creation committed: it ended "last" and stopped there. The creation
+    # looked after the step's commit, saw no mission left before "next", and woke the robot: one start.
+    assert [m.name for m in stepping.result.finished] == ["last"]
+    assert orders(stepping.result) == []
+    assert wakes == [(robot.name, CREATION_THREAD)]
+    assert Mission.objects.get(name="next").state == "PENDING"
 
 
 def test_a_mission_created_while_the_robots_mission_runs_does_not_wake_it(

@@ -92,30 +92,3 @@ def test_inside_a_callers_transaction_its_writes_end_with_the_callers() -> None:
         raise RuntimeError("the caller fails after the block")
 
     assert stored_battery(robot.name) == 10.0
-
-
-def test_statements_after_commit_run_outside_the_transaction_and_see_its_writes_committed() -> None:
-    robot = RobotFactory(battery_level=10.0)
-    table = Robot._meta.db_table
-    sql = f"SELECT battery_level, pg_current_xact_id_if_assigned() FROM {table} WHERE name = %s"
-
-    with connection.cursor() as cursor:
-        with pipelined_transaction() as after_commit:
-            set_battery(robot.name, 55.0)  # the write gives the block's transaction an id
-            after_commit.append(lambda: cursor.execute(sql, [robot.name]))
-        battery, transaction_id = cursor.fetchone()
-
-    assert (battery, transaction_id) == (55.0, None)  # committed, and read by no transaction that writes
-    assert battery_seen_by_another_connection(robot.name) == 55.0
-    assert connection_is_back_in_autocommit()
-
-
-def test_inside_a_callers_transaction_statements_after_commit_run_at_the_blocks_end() -> None:
-    robot = RobotFactory(battery_level=10.0)
-    sql = f"SELECT battery_level FROM {Robot._meta.db_table} WHERE name = %s"
-
-    with transaction.atomic(), connection.cursor() as cursor:
-        with pipelined_transaction() as after_commit:
-            after_commit.append(lambda: cursor.execute(sql, [robot.name]))
-            set_battery(robot.name, 55.0)
-        assert cursor.fetchone() == (55.0,)
