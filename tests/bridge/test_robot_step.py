@@ -375,6 +375,24 @@ def test_a_step_that_ends_the_robots_last_mission_looks_at_the_queue_again_in_th
     assert connection.get_autocommit() and not connection.in_atomic_block
 
 
+@pytest.mark.parametrize("mission", [False, True], ids=["idle_robot", "mission_running"])
+def test_a_step_that_ends_no_mission_takes_no_queue_lock(robot: Robot, tmp_path: Path, mission: bool) -> None:
+    """Nothing a creation relies on changes in such a step: the look under the lock is for steps that end
+    the robot's last mission."""
+    InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
+    if mission:
+        create("m1", robot)
+        assert len(orders(step(robot))) == 1
+
+    with protocol_trace(tmp_path / "trace") as trace:
+        outcome = step(robot, after=1.0)
+
+    statements = trace.read_text()
+    assert "FOR UPDATE" in statements  # the step ran its transaction
+    assert "pg_advisory" not in statements
+    assert outcome.finished == [] and outcome.messages == []
+
+
 def test_a_step_of_an_unknown_robot_does_nothing(db: None) -> None:
     outcome = robot_step(name="nobody-here", now=NOW)
 

@@ -1,8 +1,8 @@
 """mission_create racing a step of its robot, outside a test's transaction (as the API and the bridge run
 them), each on a connection of its own. A mission created while a step ends the robot's last one may be
 missed by both (the step read the queue before the INSERT committed, the INSERT saw the mission still
-RUNNING); whichever of the two commits last must see the other and wake the robot, or the mission waits
-for beat's sweep."""
+RUNNING), and would wait for beat's sweep. The robot's queue lock orders the two: exactly one of them
+starts the mission, the step itself (a transaction more) or the creation (it wakes the robot)."""
 
 import threading
 import time
@@ -17,7 +17,7 @@ from django.db import connection, transaction
 import missions.services
 from fleet.api import ObjectError
 from missions.models import Mission
-from missions.services import ROBOT_QUEUE_LOCK_SPACE, mission_create, robot_step
+from missions.services import mission_create, robot_step
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.bridge.test_robot_step import orders, put_state
@@ -216,10 +216,10 @@ def test_a_creation_that_waits_for_a_steps_queue_lock_wakes_the_robot_and_the_st
     robot: Robot, wakes: list[tuple[str, str]]
 ) -> None:
     with other_connection() as other:
-        # Another holder of the lock shared (as a creation in flight): the step that ends "last" waits
-        # for it before its look and COMMIT, and the creation that comes next queues behind the step.
-        lock = "SELECT pg_advisory_xact_lock_shared(%s, hashtext(%s))"
-        other.execute(lock, [ROBOT_QUEUE_LOCK_SPACE, robot.name])
+        # A creation's look at the queue without a mission of its own, holding the lock shared: the step
+        # that ends "last" waits for it before its look and COMMIT, and the creation that comes next
+        # queues behind the step.
+        other.execute("SELECT mission_queued_behind(%s, 0)", [robot.name])
         stepping = step(robot.name).start()
         assert wait_until(lambda: waits_for_a_lock(stepping.backend_pid))
         creating = creation("next", robot.name).start()
