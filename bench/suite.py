@@ -72,6 +72,10 @@ SUITES["short"] = {
     "saturation-n100": [*SATURATION_N100, "--duration", "30", "--warmup", "10"],
     "realistic-n1000": [*REALISTIC_N1000, "--duration", "60", "--warmup", "20"],
 }
+# N=2000's realistic fleet alone, shorter, in 30-s slices: its start and its steady state.
+SUITES["n2000"] = {
+    "realistic-n2000": [*REALISTIC_N2000, "--duration", "120", "--warmup", "40", "--sample-every", "30"]
+}
 # The saturation runs alone, to compare layouts (--bridges, --workers).
 SUITES["scale"] = {label: SUITES["full"][label] for label in ("saturation-n100", "saturation-n500")}
 

@@ -259,6 +259,24 @@ def test_states_are_stored_and_robots_come_online_after_redis_lost_the_scripts_a
     assert _counter(metrics.MESSAGES_IN, topic="state") == counted_before + 2
 
 
+@pytest.mark.django_db(transaction=True)  # run_once closes the connection a test transaction holds
+def test_a_backlog_is_handled_a_batch_at_a_time_each_batch_requesting_its_steps_before_the_next_is_read(
+    bridge: Bridge, make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(bridge_module, "BATCH_LIMIT", 2)
+    robots = [make_robot() for _ in range(3)]
+    bridge.directory.reload()
+    for robot in robots:
+        bridge.inbox.put((*state_message(robot), time.time()))
+
+    bridge.run_once(timeout=0)
+
+    assert bridge.steps.queued() == {robots[0].name, robots[1].name}
+    assert livestate.latest_state(robots[2].name).payload is None
+    bridge.run_once(timeout=0)
+    assert step_requested(bridge, robots[2])
+
+
 # --- status written to PostgreSQL ------------------------------------------------------------------------
 
 
