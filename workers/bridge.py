@@ -46,8 +46,8 @@ logger = logging.getLogger(__name__)
 
 SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUALIZATION)
 # Messages handled per pipeline round trip. A batch's steps are requested once all of it is handled, so a
-# backlog (the bridge starved of CPU for a moment) is worked off in small batches: with 2,000 the state
-# that needs a step waited behind hundreds that do not (bench/README.md: N=2000's step p99 ~230 -> ~150 ms).
+# backlog (the bridge starved of CPU for a moment) is worked off in small batches: with 2,000, a state
+# that needs a step waited behind hundreds of periodic ones (bench/README.md, "What changed": N=2000).
 BATCH_LIMIT = 100
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
