@@ -49,6 +49,10 @@ SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUA
 # backlog (the bridge starved of CPU for a moment) is worked off in small batches: with 2,000, a state
 # that needs a step waited behind hundreds of periodic ones (bench/README.md, "What changed": N=2000).
 BATCH_LIMIT = 100
+# A batch also takes what arrives this long after its first message. A round trip costs the processing
+# thread about four times a state's own work, and at 2,000 robots the batches were of 2-3 states: a state
+# waits up to 2 ms more, and the whole machine has that CPU for steps (bench/README.md, "What changed").
+BATCH_WINDOW_SECONDS = 0.002
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
 FORGET_STATUS_SECONDS = 60.0  # a robot silent this long is forgotten until it is heard again
@@ -191,12 +195,19 @@ class Bridge:
             batch = [self.inbox.get(timeout=timeout)]
         except queue.Empty:
             return []
+        self._take_queued(batch)
+        if len(batch) < BATCH_LIMIT:
+            # One sleep, not a wait per message: each wake-up would cost about what the window saves.
+            time.sleep(max(0.0, batch[0][2] + BATCH_WINDOW_SECONDS - time.time()))
+            self._take_queued(batch)
+        return batch
+
+    def _take_queued(self, batch: list[tuple[str, bytes, float]]) -> None:
         while len(batch) < BATCH_LIMIT:
             try:
                 batch.append(self.inbox.get_nowait())
             except queue.Empty:
-                break
-        return batch
+                return
 
     def handle(self, batch: list[tuple[str, bytes]], received_at: float | None = None) -> None:
         """Parse a batch, store states in one Redis pipeline, then act on what changed.

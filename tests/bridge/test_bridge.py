@@ -1,6 +1,7 @@
 """The bridge's message handling against the real PostgreSQL and Redis (MQTT is bypassed: batches are handed
 to `Bridge.handle` as the processing thread would)."""
 
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -275,6 +276,45 @@ def test_a_backlog_is_handled_a_batch_at_a_time_each_batch_requesting_its_steps_
     assert livestate.latest_state(robots[2].name).payload is None
     bridge.run_once(timeout=0)
     assert step_requested(bridge, robots[2])
+
+
+@pytest.mark.django_db(transaction=True)  # run_once closes the connection a test transaction holds
+def test_a_batch_takes_what_arrives_within_its_window_after_its_first_message(
+    bridge: Bridge, make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", 0.5)
+    first, second = make_robot(), make_robot()
+    bridge.directory.reload()
+    bridge.inbox.put((*state_message(first), time.time()))
+    later = threading.Timer(0.05, lambda: bridge.inbox.put((*state_message(second), time.time())))
+    later.start()
+
+    bridge.run_once(timeout=0)
+
+    later.join()
+    assert bridge.steps.queued() == {first.name, second.name}
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize(
+    ("limit", "waited"),
+    [pytest.param(2, 0.0, id="full-batch"), pytest.param(100, 10.0, id="first-message-waited-the-window")],
+)
+def test_a_batch_does_not_wait_once_full_or_once_its_first_message_waited_the_window(
+    bridge: Bridge, make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch, limit: int, waited: float
+) -> None:
+    monkeypatch.setattr(bridge_module, "BATCH_LIMIT", limit)
+    monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", 10.0)
+    robots = [make_robot(), make_robot()]
+    bridge.directory.reload()
+    for robot in robots:
+        bridge.inbox.put((*state_message(robot), time.time() - waited))
+    started = time.monotonic()
+
+    bridge.run_once(timeout=0)
+
+    assert time.monotonic() - started < 5.0  # the window would have held it 10 s
+    assert bridge.steps.queued() == {robot.name for robot in robots}
 
 
 # --- status written to PostgreSQL ------------------------------------------------------------------------
