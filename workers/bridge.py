@@ -49,9 +49,10 @@ SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUA
 # backlog (the bridge starved of CPU for a moment) is worked off in small batches: with 2,000, a state
 # that needs a step waited behind hundreds of periodic ones (bench/README.md, "What changed": N=2000).
 BATCH_LIMIT = 100
-# A batch also takes what arrives this long after its first message. A round trip costs the processing
-# thread about four times a state's own work, and at 2,000 robots the batches were of 2-3 states: a state
-# waits up to 2 ms more, and the whole machine has that CPU for steps (bench/README.md, "What changed").
+# A batch also takes what arrives this long after its first message. A batch's Redis round trip costs the
+# processing thread about four times a state's own work, and at 2,000 robots its CPU per state put the
+# batches at 2-3 states: a state now waits up to 2 ms more, and the machine has that CPU for the steps
+# (bench/README.md, "What changed").
 BATCH_WINDOW_SECONDS = 0.002
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
@@ -178,7 +179,8 @@ class Bridge:
             self.stop_status_writer()
 
     def run_once(self, timeout: float) -> None:
-        """Handle whatever arrived (waiting up to `timeout` for something); when a flush is due and the
+        """Handle whatever arrived (waiting up to `timeout` for something, then up to BATCH_WINDOW_SECONDS
+        for more); when a flush is due and the
         last one is written, hand the next to the status-writer thread (`start_status_writer`, which
         `run_forever` starts; without it flushes wait here)."""
         batch = self._drain(timeout)
@@ -197,8 +199,10 @@ class Bridge:
             return []
         self._take_queued(batch)
         if len(batch) < BATCH_LIMIT:
-            # One sleep, not a wait per message: each wake-up would cost about what the window saves.
-            time.sleep(max(0.0, batch[0][2] + BATCH_WINDOW_SECONDS - time.time()))
+            # One sleep, not a wait per message, which would wake this thread for every message the window
+            # gathers. Arrival times are wall-clock: bounded, so a clock stepped back cannot stall the bridge.
+            window_left = batch[0][2] + BATCH_WINDOW_SECONDS - time.time()
+            time.sleep(min(BATCH_WINDOW_SECONDS, max(0.0, window_left)))
             self._take_queued(batch)
         return batch
 

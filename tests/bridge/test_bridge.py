@@ -297,14 +297,23 @@ def test_a_batch_takes_what_arrives_within_its_window_after_its_first_message(
 
 @pytest.mark.django_db(transaction=True)
 @pytest.mark.parametrize(
-    ("limit", "waited"),
-    [pytest.param(2, 0.0, id="full-batch"), pytest.param(100, 10.0, id="first-message-waited-the-window")],
+    ("limit", "window", "waited"),
+    [
+        pytest.param(2, 10.0, 0.0, id="full-batch"),
+        pytest.param(100, 10.0, 10.0, id="first-message-waited-the-window"),
+        pytest.param(100, 0.1, -3600.0, id="clock-stepped-back-an-hour"),
+    ],
 )
-def test_a_batch_does_not_wait_once_full_or_once_its_first_message_waited_the_window(
-    bridge: Bridge, make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch, limit: int, waited: float
+def test_a_batch_waits_no_longer_than_its_window_and_not_once_full_or_once_its_first_message_waited_it(
+    bridge: Bridge,
+    make_robot: MakeRobot,
+    monkeypatch: pytest.MonkeyPatch,
+    limit: int,
+    window: float,
+    waited: float,
 ) -> None:
     monkeypatch.setattr(bridge_module, "BATCH_LIMIT", limit)
-    monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", 10.0)
+    monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", window)
     robots = [make_robot(), make_robot()]
     bridge.directory.reload()
     for robot in robots:
@@ -313,7 +322,7 @@ def test_a_batch_does_not_wait_once_full_or_once_its_first_message_waited_the_wi
 
     bridge.run_once(timeout=0)
 
-    assert time.monotonic() - started < 5.0  # the window would have held it 10 s
+    assert time.monotonic() - started < 5.0  # a wrong wait here is 10 s or an hour
     assert bridge.steps.queued() == {robot.name for robot in robots}
 
 
