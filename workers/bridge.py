@@ -269,7 +269,7 @@ class Bridge:
             metrics.count(counter, by=by, pipe=pipe, topic=topic_label)
         if seen:
             livestate.mark_seen(pipe, list(seen), max(seen.values()))
-        results = livestate.execute(pipe) if len(pipe) else []
+        results = livestate.execute(pipe)
         stored_results = results[: len(stored)]
         changed = set()
         for (name, state, digest), result in zip(stored, stored_results, strict=True):

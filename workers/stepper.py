@@ -72,7 +72,7 @@ def run_step(name: str, *, requested_at: float | None = None) -> None:
             header_ids=outcome.header_ids,
             counters=counters,
         )
-    counters.execute()  # after the messages are out: the step's metrics wait, its robot does not
+    livestate.execute(counters)  # after the messages are out: the step's metrics wait, its robot does not
     if outcome.notifies:
         from workers.tasks import run_notify  # tasks import this module
 
