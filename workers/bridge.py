@@ -180,9 +180,8 @@ class Bridge:
 
     def run_once(self, timeout: float) -> None:
         """Handle whatever arrived (waiting up to `timeout` for something, then up to BATCH_WINDOW_SECONDS
-        for more); when a flush is due and the
-        last one is written, hand the next to the status-writer thread (`start_status_writer`, which
-        `run_forever` starts; without it flushes wait here)."""
+        for more); when a flush is due and the last one is written, hand the next to the status-writer
+        thread (`start_status_writer`, which `run_forever` starts; without it flushes wait here)."""
         batch = self._drain(timeout)
         close_old_connections()
         if batch:

@@ -13,8 +13,10 @@ from django.conf import settings
 logger = logging.getLogger(__name__)
 
 
-class _Client(mqtt.Client):
-    """paho's client, whose queued packets any thread may write (`Publisher.publish`), one at a time."""
+class ServerClient(mqtt.Client):
+    """paho's client, whose queued packets any thread may write (`write_queued`), one writer at a time.
+
+    The only place that reaches into paho's internals (`_packet_write`, pinned paho 2.2)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -26,10 +28,15 @@ class _Client(mqtt.Client):
         with self._write_lock:
             return super()._packet_write()
 
+    def write_queued(self) -> None:
+        """Write the queued packets from this thread. A failed write leaves them queued for the network
+        thread, which sees the broken connection too and handles it."""
+        self._packet_write()
 
-def new_client(role: str) -> mqtt.Client:
+
+def new_client(role: str) -> ServerClient:
     """A paho client configured from settings; the caller connects it and runs its loop."""
-    client = _Client(
+    client = ServerClient(
         mqtt.CallbackAPIVersion.VERSION2,
         client_id=f"fleet-{role}-{os.getpid()}-{uuid.uuid4().hex[:8]}",
         transport=settings.MQTT_TRANSPORT,
@@ -73,10 +80,9 @@ class Publisher:
 
         paho's own network thread writes it only once it has woken up and taken the interpreter lock:
         in a step process busy with its steps, 1-2 ms later at the median and 12-24 ms at p99 at 2,000
-        robots (bench/README.md). A failed write leaves the message queued for the network thread, which
-        sees the broken connection too and handles it."""
+        robots (bench/README.md)."""
         self._client.publish(topic, payload, qos=qos)
-        self._client._packet_write()
+        self._client.write_queued()
 
 
 _publisher: Publisher | None = None

@@ -4,9 +4,9 @@ import socket
 import threading
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
-import paho.mqtt.client as mqtt
+import pytest
 from django.conf import settings
 
 from workers.mqtt import Publisher, new_client
@@ -27,33 +27,42 @@ def test_a_server_client_sends_every_packet_at_once() -> None:
         client.loop_stop()
 
 
-def _subscriber(topic: str) -> tuple[mqtt.Client, list[bytes]]:
-    received: list[bytes] = []
+@pytest.fixture
+def topic() -> str:
+    return f"test/{uuid.uuid4().hex}"
+
+
+@pytest.fixture
+def received(topic: str) -> Iterator[list[bytes]]:
+    """The payloads a subscriber to `topic` receives, in order."""
+    payloads: list[bytes] = []
     subscribed = threading.Event()
     client = new_client("test-subscriber")
-    client.on_message = lambda client, userdata, message: received.append(message.payload)
+    client.on_message = lambda client, userdata, message: payloads.append(message.payload)
     client.on_subscribe = lambda *args: subscribed.set()
     client.on_connect = lambda client, *args: client.subscribe(topic)
     client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
     client.loop_start()
     assert subscribed.wait(10)
-    return client, received
+    yield payloads
+    client.disconnect()
+    client.loop_stop()
 
 
-def _connected_publisher() -> Publisher:
+@pytest.fixture
+def publisher() -> Iterator[Publisher]:
+    """A connected publisher of its own (not the process's, which other tests share)."""
     publisher = Publisher()
-    deadline = time.monotonic() + 10
-    while not publisher._client.is_connected():
-        assert time.monotonic() < deadline, "publisher did not connect"
-        time.sleep(0.01)
-    return publisher
+    _wait_for(publisher._client.is_connected)
+    yield publisher
+    publisher._client.disconnect()
+    publisher._client.loop_stop()
 
 
-def test_the_publishing_thread_writes_its_message_itself() -> None:
+def test_the_publishing_thread_writes_its_message_itself(
+    topic: str, received: list[bytes], publisher: Publisher
+) -> None:
     """Not paho's network thread, which in a busy step process gets the interpreter lock late."""
-    topic = f"test/{uuid.uuid4().hex}"
-    subscriber, received = _subscriber(topic)
-    publisher = _connected_publisher()
     writers: list[str] = []
     sock_send = publisher._client._sock_send
 
@@ -62,25 +71,19 @@ def test_the_publishing_thread_writes_its_message_itself() -> None:
         return sock_send(buf)
 
     publisher._client._sock_send = recording_send
-    try:
-        for index in range(60):
-            publisher.publish(topic, b"%d" % index)
-        _wait_for(lambda: len(received) == 60)
-        # The network thread, woken by each message, wins the race for some (up to a third in trials);
-        # before, it wrote every one.
-        assert writers.count(threading.current_thread().name) >= 20
-        assert received == [b"%d" % index for index in range(60)]
-    finally:
-        publisher._client.disconnect()
-        publisher._client.loop_stop()
-        subscriber.disconnect()
-        subscriber.loop_stop()
+    for index in range(60):
+        publisher.publish(topic, b"%d" % index)
+    _wait_for(lambda: len(received) == 60)
+
+    # The network thread, woken by each message, wins the race for some (up to a third in trials); before,
+    # it wrote every one.
+    assert writers.count(threading.current_thread().name) >= 20
+    assert received == [b"%d" % index for index in range(60)]
 
 
-def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_in_order() -> None:
-    topic = f"test/{uuid.uuid4().hex}"
-    subscriber, received = _subscriber(topic)
-    publisher = _connected_publisher()
+def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_in_order(
+    topic: str, received: list[bytes], publisher: Publisher
+) -> None:
     padding = b"x" * 3000  # messages larger than one small write, so pieces of two could interleave
 
     def publish_from(thread: int) -> None:
@@ -88,23 +91,18 @@ def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_i
             publisher.publish(topic, b"%d %d " % (thread, index) + padding)
 
     threads = [threading.Thread(target=publish_from, args=(thread,)) for thread in range(4)]
-    try:
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
-        _wait_for(lambda: len(received) == 400)
-        by_thread: dict[int, list[int]] = {}
-        for payload in received:
-            thread, index, rest = payload.split(b" ", 2)
-            assert rest == padding
-            by_thread.setdefault(int(thread), []).append(int(index))
-        assert by_thread == {thread: list(range(100)) for thread in range(4)}
-    finally:
-        publisher._client.disconnect()
-        publisher._client.loop_stop()
-        subscriber.disconnect()
-        subscriber.loop_stop()
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    _wait_for(lambda: len(received) == 400)
+
+    by_thread: dict[int, list[int]] = {}
+    for payload in received:
+        thread, index, rest = payload.split(b" ", 2)
+        assert rest == padding
+        by_thread.setdefault(int(thread), []).append(int(index))
+    assert by_thread == {thread: list(range(100)) for thread in range(4)}
 
 
 def _wait_for(condition: Callable[[], bool], timeout: float = 10) -> None:
