@@ -2,6 +2,7 @@
 
 import multiprocessing
 import multiprocessing.connection
+import signal
 import threading
 import uuid
 from collections.abc import Iterator
@@ -44,6 +45,33 @@ def test_a_connection_redis_dropped_is_replaced_and_the_commands_sent_again(key:
 
     assert livestate.round_trip([("SET", key, "after"), ("GET", key)]) == [b"OK", b"after"]
     assert _connection_id() != dropped
+
+
+class Interrupted(Exception):
+    pass
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise Interrupted
+
+
+def test_a_round_trip_interrupted_while_reading_leaves_no_reply_behind_for_the_next(key: str) -> None:
+    """redis-py's read drops the connection it was interrupted in; `round_trip` drops it too (for an
+    interruption between two reads, which a test cannot time). Either alone passes this test; with
+    neither, the next round trip reads the BLPOP's reply as its first."""
+    interrupted = _connection_id()
+    previous = signal.signal(signal.SIGALRM, _interrupt)
+    signal.setitimer(signal.ITIMER_REAL, 0.2)  # while Redis holds the BLPOP's reply back for 2 s
+    try:
+        with pytest.raises(Interrupted):
+            livestate.round_trip([("BLPOP", key + ":empty", 2)])
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+    # On the interrupted connection the BLPOP's nil would be read as the SET's reply.
+    assert livestate.round_trip([("SET", key, "after"), ("GET", key)]) == [b"OK", b"after"]
+    assert _connection_id() != interrupted
 
 
 def test_execute_runs_a_pipeline_in_one_round_trip_and_raises_its_first_error(key: str) -> None:
