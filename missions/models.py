@@ -61,7 +61,11 @@ class Mission(models.Model):
             models.Index(fields=["robot", "state", "queue_position"], name="mission_queue_idx"),
             models.Index(fields=["state"], name="mission_state_idx"),
             models.Index(fields=["start_timestamp"], name="mission_start_idx"),
-            models.Index(fields=["lifecycle"], name="mission_lifecycle_idx"),
+            # Only the admin filters by lifecycle, and only the rare deleting missions are worth an index:
+            # a full one got an entry at every update that moved a mission's row.
+            models.Index(
+                fields=["lifecycle"], condition=~models.Q(lifecycle="ALIVE"), name="mission_lifecycle_idx"
+            ),
             # Beat's sweep looks for queued missions past their deadline and queued missions no step has
             # seen; partial indexes keep that cheap however many finished missions the table holds.
             models.Index(
