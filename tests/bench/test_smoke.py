@@ -30,8 +30,9 @@ from bench import report
 from bench.fleet import SETTLED_READINGS
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
 from bench.suite import API_NICENESS, api_command
-from tests.e2e.conftest import PYTHON, ROOT, Stack, start_servers, wait_for
+from tests.e2e.conftest import PYTHON, ROOT, Stack, start_servers
 from tests.vda5050.schemas import validate_message
+from tests.waiting import wait_for
 from vda5050.codec import parse_state
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]

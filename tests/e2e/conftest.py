@@ -80,17 +80,6 @@ _flush = TransactionTestCase._fixture_teardown
 TransactionTestCase._fixture_teardown = _flush_retrying_on_deadlock
 
 
-def wait_for(predicate: Callable[[], Any], timeout: float = WAIT_SECONDS, message: str = "") -> Any:
-    """Poll until `predicate` returns something truthy; fail the test with `message` otherwise."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    pytest.fail(f"timed out waiting for {message or predicate}")
-
-
 @dataclass
 class Process:
     name: str

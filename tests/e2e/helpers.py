@@ -9,7 +9,7 @@ from typing import Any
 
 from rest_framework.test import APIClient
 
-from tests.e2e.conftest import wait_for
+from tests.waiting import wait_for
 
 DONE = {"COMPLETED", "FAILED", "CANCELED"}
 

@@ -6,7 +6,6 @@ import pytest
 
 from missions.models import Mission
 from robots.models import Robot
-from tests.e2e.conftest import wait_for
 from tests.e2e.helpers import (
     action,
     create_robot,
@@ -18,6 +17,7 @@ from tests.e2e.helpers import (
     wait_mission_where,
     wait_robot,
 )
+from tests.waiting import wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 

@@ -4,7 +4,6 @@ import math
 
 import pytest
 
-from tests.e2e.conftest import wait_for
 from tests.e2e.helpers import (
     StatusRecorder,
     action,
@@ -16,6 +15,7 @@ from tests.e2e.helpers import (
     wait_mission,
     wait_robot,
 )
+from tests.waiting import wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 

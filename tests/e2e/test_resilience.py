@@ -13,8 +13,8 @@ import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
 
-from tests.e2e.conftest import wait_for
 from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission, wait_robot
+from tests.waiting import wait_for
 from workers import livestate, metrics
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]

@@ -10,8 +10,8 @@ import orjson
 import pytest
 
 from robots.models import Robot
-from tests.e2e.conftest import wait_for
 from tests.e2e.helpers import action, create_robot, get, post_mission, route, wait_mission, wait_robot
+from tests.waiting import wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 

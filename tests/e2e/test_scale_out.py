@@ -15,8 +15,9 @@ from typing import Any
 import pytest
 
 from fleet.celery import app
-from tests.e2e.conftest import BRIDGE, WORKER, Process, Recorder, Stack, wait_for
+from tests.e2e.conftest import BRIDGE, WORKER, Process, Recorder, Stack
 from tests.e2e.helpers import action, composite, create_robot, post_mission, route, wait_mission
+from tests.waiting import wait_for
 from vda5050.orders import order_id
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]

@@ -12,7 +12,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -28,6 +27,7 @@ from paho.mqtt.enums import CallbackAPIVersion
 from simulator.config import RobotConfig, SimulationSettings, parse_robot_spec
 from simulator.robot import Outgoing, SimulatedRobot
 from tests.vda5050.schemas import validate_message
+from tests.waiting import wait_for
 from vda5050.codec import encode, header_for, parse_state
 from vda5050.models import (
     Action,
@@ -159,16 +159,6 @@ def harness() -> Callable[..., RobotHarness]:
 
 
 # --- MQTT ---------------------------------------------------------------------------------------------
-
-
-def wait_for(condition: Callable[[], Any], message: str, timeout: float = WAIT_SECONDS) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.05)
-    pytest.fail(f"timed out waiting for {message}")
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
-from tests.simulator.conftest import MqttProbe, action, route, wait_for
+from tests.simulator.conftest import MqttProbe, action, route
+from tests.waiting import wait_for
 from vda5050.codec import encode, header_for
 from vda5050.models import InstantActionsContent
 from vda5050.topics import Topic, topic_for

@@ -2,13 +2,13 @@
 
 import socket
 import threading
-import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import pytest
 from django.conf import settings
 
+from tests.waiting import wait_for
 from workers.mqtt import Publisher, new_client
 
 
@@ -53,7 +53,7 @@ def received(topic: str) -> Iterator[list[bytes]]:
 def publisher() -> Iterator[Publisher]:
     """A connected publisher of its own (not the process's, which other tests share)."""
     publisher = Publisher()
-    _wait_for(publisher._client.is_connected)
+    wait_for(publisher._client.is_connected)
     yield publisher
     publisher._client.disconnect()
     publisher._client.loop_stop()
@@ -73,7 +73,7 @@ def test_the_publishing_thread_writes_its_message_itself(
     publisher._client._sock_send = recording_send
     for index in range(60):
         publisher.publish(topic, b"%d" % index)
-    _wait_for(lambda: len(received) == 60)
+    wait_for(lambda: len(received) == 60)
 
     # The network thread, woken by each message, wins the race for some (up to a third in trials); before,
     # it wrote every one.
@@ -95,7 +95,7 @@ def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_i
         thread.start()
     for thread in threads:
         thread.join()
-    _wait_for(lambda: len(received) == 400)
+    wait_for(lambda: len(received) == 400)
 
     by_thread: dict[int, list[int]] = {}
     for payload in received:
@@ -103,10 +103,3 @@ def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_i
         assert rest == padding
         by_thread.setdefault(int(thread), []).append(int(index))
     assert by_thread == {thread: list(range(100)) for thread in range(4)}
-
-
-def _wait_for(condition: Callable[[], bool], timeout: float = 10) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.01)
