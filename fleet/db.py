@@ -6,7 +6,7 @@ from contextlib import contextmanager
 from typing import Any
 
 import orjson
-from django.db import connection, transaction
+from django.db import connection, connections, transaction
 from psycopg.pq import TransactionStatus
 from psycopg.types.json import Jsonb
 
@@ -54,3 +54,20 @@ def pipelined_transaction() -> Iterator[None]:
         if conn.pgconn.transaction_status in (TransactionStatus.INTRANS, TransactionStatus.INERROR):
             conn.execute("ROLLBACK")
         raise
+
+
+def drop_broken_connections() -> None:
+    """Close this thread's database connections on which a query failed and that no longer answer, so the
+    next query connects again (PostgreSQL restarted, failed over, or dropped the connection).
+
+    For the hot loops (the bridge, steps, Celery tasks), in place of Django's `close_old_connections`: with
+    CONN_HEALTH_CHECKS on (for the API's requests) that pings the server before the next query every time.
+    This asks the server only after an error, so a healthy connection costs nothing.
+    """
+    for conn in connections.all(initialized_only=True):
+        if conn.connection is None or not conn.errors_occurred or conn.in_atomic_block:
+            continue
+        if conn.is_usable():
+            conn.errors_occurred = False
+        else:
+            conn.close()

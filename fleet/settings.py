@@ -87,10 +87,12 @@ DATABASES = {
         "PASSWORD": env_str("FLEET_DB_PASSWORD", ""),
         "HOST": env_str("FLEET_DB_HOST", "127.0.0.1"),
         "PORT": env_int("FLEET_DB_PORT", 5432),
-        # Persistent connections: no connection setup per request or per task, and no health-check
-        # query either (a broken connection is noticed by its first failing query and replaced).
+        # Persistent connections: no connection setup per request or per task. Each API request checks
+        # its connection first, so a PostgreSQL restart never fails a request once the server is back;
+        # the hot loops (bridge, steps, tasks) skip that query and replace a connection only after it
+        # failed (`fleet.db.drop_broken_connections`).
         "CONN_MAX_AGE": None,
-        "CONN_HEALTH_CHECKS": False,
+        "CONN_HEALTH_CHECKS": True,
         # Server-side binding lets psycopg prepare the hot statements: PostgreSQL plans them once.
         "OPTIONS": {"server_side_binding": True, "prepare_threshold": 2},
     }
@@ -149,7 +151,8 @@ CELERY_WORKER_PREFETCH_MULTIPLIER = env_int("FLEET_CELERY_PREFETCH", 4)
 CELERY_TASK_ALWAYS_EAGER = env_bool("FLEET_CELERY_EAGER", False)
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 # Celery's Django fixup closes the database connection around every task unless told to reuse it: that
-# would cost a new PostgreSQL backend per task. Reuse it (Django still drops broken connections).
+# would cost a new PostgreSQL backend per task. Reuse it; a broken one is replaced before the next task
+# (`fleet.celery`).
 CELERY_DB_REUSE_MAX = 1_000_000_000
 
 # --- MQTT and VDA 5050 ----------------------------------------------------------------------------
@@ -185,6 +188,9 @@ DISPATCH_REQUEST_FACTSHEET = env_bool("FLEET_REQUEST_FACTSHEET", True)
 DISPATCH_START_NODE_DEVIATION = env_float("FLEET_START_NODE_DEVIATION", 0.5)
 # How often beat looks for heartbeats, timeouts, deadlines and unacknowledged messages.
 DISPATCH_BEAT_PERIOD = env_float("FLEET_BEAT_PERIOD", 1.0)
+# How often beat looks for robots that finished their order while their mission did not move on (a step
+# lost to a crash); cheap, but it reads every running mission.
+DISPATCH_STALL_CHECK_SECONDS = env_float("FLEET_STALL_CHECK_SECONDS", 5.0)
 # Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
 NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
 NOTIFY_BACKOFF_SECONDS = env_float("FLEET_NOTIFY_BACKOFF_SECONDS", 1.0)
@@ -208,4 +214,5 @@ CELERY_BROKER_TRANSPORT_OPTIONS = {"visibility_timeout": env_int("FLEET_VISIBILI
 CELERY_BEAT_SCHEDULE = {
     "check-heartbeats": {"task": "fleet.check_heartbeats", "schedule": DISPATCH_BEAT_PERIOD},
     "sweep": {"task": "fleet.sweep", "schedule": DISPATCH_BEAT_PERIOD},
+    "step-stalled": {"task": "fleet.step_stalled", "schedule": DISPATCH_STALL_CHECK_SECONDS},
 }

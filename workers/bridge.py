@@ -24,9 +24,9 @@ from typing import Any
 import orjson
 import paho.mqtt.client as mqtt
 from django.conf import settings
-from django.db import DatabaseError, close_old_connections, connections
+from django.db import DatabaseError, connections
 
-from fleet.db import jsonb
+from fleet.db import drop_broken_connections, jsonb
 from missions.dispatch import StateDigest, state_digest, takes_order_only
 from missions.selectors import robots_with_missions
 from missions.services import mission_orders_accepted
@@ -40,7 +40,7 @@ from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_versi
 from vda5050.topics import shared_subscription as shared_filter
 from workers import livestate, metrics
 from workers.mqtt import new_client
-from workers.stepper import StepProcesses, StepRunner, settle_long_lived_process
+from workers.stepper import StepProcesses, StepRunner, keep_trying, settle_long_lived_process
 
 logger = logging.getLogger(__name__)
 
@@ -159,10 +159,7 @@ class Bridge:
 
     def run_forever(self) -> None:
         self.steps.start()
-        self.directory.reload()
-        # A state stored just before this bridge last stopped may have lost its step: step every robot with
-        # work once (a step that finds nothing to do costs only its reads).
-        self.steps.request(robots_with_missions())
+        keep_trying("loading the robots", self._resume)
         settle_long_lived_process()  # its step processes, forked earlier, settle their own
         self.start_status_writer()
         self.client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
@@ -178,12 +175,18 @@ class Bridge:
             self.client.loop_stop()
             self.stop_status_writer()
 
+    def _resume(self) -> None:
+        self.directory.reload()
+        # A state stored just before this bridge last stopped may have lost its step: step every robot with
+        # work once (a step that finds nothing to do costs only its reads).
+        self.steps.request(robots_with_missions())
+
     def run_once(self, timeout: float) -> None:
         """Handle whatever arrived (waiting up to `timeout` for something, then up to BATCH_WINDOW_SECONDS
         for more); when a flush is due and the last one is written, hand the next to the status-writer
         thread (`start_status_writer`, which `run_forever` starts; without it flushes wait here)."""
         batch = self._drain(timeout)
-        close_old_connections()
+        drop_broken_connections()
         if batch:
             self.handle([(topic, payload) for topic, payload, _ in batch], received_at=batch[0][2])
         due = time.monotonic() - self._last_flush >= settings.BRIDGE_STATUS_FLUSH_SECONDS
@@ -287,17 +290,23 @@ class Bridge:
     def _act(
         self, changed: set[str], came_online: list[str], disconnected: set[str], *, received_at: float
     ) -> None:
-        if came_online:
-            try:
-                robots_came_online(names=came_online)
-            except DatabaseError:
-                livestate.client().srem(livestate.ONLINE_SET, *came_online)  # their next state tries again
-                raise
-        for name in disconnected:
-            if livestate.mark_offline(name):
-                Robot.objects.filter(name=name).update(online=False)
-                changed.add(name)
-        self.steps.request(changed | set(came_online), at=received_at)
+        # The steps are requested whatever fails here: with PostgreSQL away they fail too, and are retried
+        # until it is back; a lost request would leave the robot unstepped until its state changes again.
+        try:
+            if came_online:
+                try:
+                    robots_came_online(names=came_online)
+                except DatabaseError:
+                    livestate.client().srem(
+                        livestate.ONLINE_SET, *came_online
+                    )  # their next state tries again
+                    raise
+            for name in disconnected:
+                if livestate.mark_offline(name):
+                    Robot.objects.filter(name=name).update(online=False)
+                    changed.add(name)
+        finally:
+            self.steps.request(changed | set(came_online) | disconnected, at=received_at)
 
     def _status(self, name: str) -> RobotStatus:
         """The robot's status, now heard from."""
@@ -370,7 +379,7 @@ class Bridge:
     def _write_forever(self) -> None:
         while (flush := self._writes.get()) is not None:
             try:
-                close_old_connections()
+                drop_broken_connections()
                 self._write(flush)
             except Exception:  # PostgreSQL away for a moment: statuses are rewritten once they change
                 logger.exception("status flush failed")
