@@ -19,6 +19,8 @@ from workers import livestate
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
 UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
+# A running mission untouched this long whose robot has finished the mission's order gets a step.
+STALLED_MISSION_SECONDS = 5
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -80,6 +82,35 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     names.update(unnoticed.values_list("robot", flat=True))
     names.update(actions.values_list("robot_id", flat=True))
     return sorted(names)
+
+
+def robots_stalled(*, now: datetime | None = None) -> list[str]:
+    """Robots idle at the end of the order their running mission sent, the mission not moved on since.
+
+    The last line of defence: the state that ended the order asked for a step, and a step that failed is
+    retried; but a process killed with that retry pending, or a lost request, leaves nothing else to step
+    the robot, which sends no news while it idles.
+    """
+    now = now or timezone.now()
+    rows = list(
+        Mission.objects.filter(
+            state=MissionState.RUNNING,
+            order__isnull=False,
+            updated_at__lte=now - timedelta(seconds=STALLED_MISSION_SECONDS),
+        ).values_list("robot", KT("order__orderId"), KT("order__orderUpdateId"))
+    )
+    held = livestate.orders_held([robot for robot, *_ in rows])
+    return sorted(
+        {
+            robot
+            for robot, order_id, update_id in rows
+            if (order := held[robot]) is not None
+            and not order.busy
+            and order.order_id == order_id
+            and update_id is not None
+            and order.order_update_id >= int(update_id)
+        }
+    )
 
 
 def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:

@@ -18,7 +18,7 @@ from robots.models import InstantAction, Robot
 from vda5050.models import ActionType
 from vda5050.orders import new_action_id
 from workers import livestate
-from workers.steps import request_steps
+from workers.steps import request_steps_or_later
 from workers.wake import wake_robot
 
 FACTSHEET_REQUEST = ActionType.FACTSHEET_REQUEST.value
@@ -145,17 +145,33 @@ def robots_came_online(*, names: Sequence[str]) -> None:
 
 
 def robot_check_heartbeats(*, now: float | None = None) -> list[str]:
-    """Mark offline every online robot silent for longer than its heartbeat_timeout; returns their names."""
+    """Make each robot's `online` follow what the bridges heard: offline once silent for longer than its
+    heartbeat_timeout, online again once heard within it; returns the robots whose flag changed.
+
+    The second half is what keeps the flag from staying wrong: the bridge marks a robot online in Redis
+    and then in PostgreSQL, and a bridge killed or a database away between the two left a robot offline
+    for good while it kept publishing.
+    """
     now = time.time() if now is None else now
-    online = dict(Robot.objects.filter(online=True).values_list("name", "heartbeat_timeout"))
-    last_seen = livestate.last_seen(list(online))
-    silent = [name for name, timeout in online.items() if (last_seen[name] or 0.0) + timeout < now]
+    robots = list(Robot.objects.values_list("name", "heartbeat_timeout", "online"))
+    last_seen = livestate.last_seen([name for name, _, _ in robots])
+    silent, heard = [], []
+    for name, timeout, online in robots:
+        recent = last_seen[name] is not None and last_seen[name] + timeout >= now
+        if online and not recent:
+            silent.append(name)
+        elif not online and recent:
+            heard.append(name)
     if silent:
         Robot.objects.filter(name__in=silent).update(online=False)
         for name in silent:
             livestate.mark_offline(name)
-        request_steps(silent)
-    return silent
+    if heard:
+        robots_came_online(names=heard)
+        livestate.mark_online(heard)
+    if silent or heard:
+        request_steps_or_later([*silent, *heard])
+    return [*silent, *heard]
 
 
 ROBOTS_BY_NAME_SQL = f"SELECT name FROM {Robot._meta.db_table} WHERE name = ANY(%s)"

@@ -203,10 +203,12 @@ def latest_state(name: str) -> LatestState:
 
 @dataclass(frozen=True)
 class HeldOrder:
-    """The order a robot's latest state holds, and when that state arrived (None if not recorded)."""
+    """The order a robot's latest state holds, whether it is still busy with it, and when that state
+    arrived (None if not recorded)."""
 
     order_id: str
     order_update_id: int
+    busy: bool
     arrived_at: datetime | None
 
 
@@ -214,10 +216,12 @@ def orders_held(names: list[str]) -> dict[str, HeldOrder | None]:
     """The order each robot's latest state holds, in one round trip; None for a robot without a state."""
     pipe = client().pipeline(transaction=False)
     for name in names:
-        pipe.hmget(robot_key(name), "order_id", "order_update_id", "at")
+        pipe.hmget(robot_key(name), "order_id", "order_update_id", "busy", "at")
     return {
-        name: None if order_id is None else HeldOrder(order_id.decode(), int(update_id), _arrival(at))
-        for name, (order_id, update_id, at) in zip(names, pipe.execute(), strict=True)
+        name: None
+        if order_id is None
+        else HeldOrder(order_id.decode(), int(update_id), busy == b"1", _arrival(at))
+        for name, (order_id, update_id, busy, at) in zip(names, pipe.execute(), strict=True)
     }
 
 
@@ -239,8 +243,18 @@ def came_online(result: list[bytes]) -> list[str]:
 
 
 def mark_offline(name: str) -> bool:
-    """True if the robot was online before."""
-    return bool(client().srem(ONLINE_SET, name))
+    """True if the robot was online before. Its last heard time goes too: the robot said it is offline,
+    or was silent too long, so only a message after this one may count as heard (`heard_within`)."""
+    pipe = client().pipeline(transaction=True)
+    pipe.srem(ONLINE_SET, name)
+    pipe.zrem(LAST_SEEN, name)
+    return bool(pipe.execute()[0])
+
+
+def mark_online(names: list[str]) -> None:
+    """Robots the online set lacks although they were heard (a bridge stopped between its two writes)."""
+    if names:
+        client().sadd(ONLINE_SET, *names)
 
 
 def last_seen(names: list[str]) -> dict[str, float | None]:

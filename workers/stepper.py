@@ -8,25 +8,28 @@ latest stored state, so a duplicate or late step finds nothing to do.
 """
 
 import gc
+import heapq
 import logging
+import math
 import multiprocessing
 import queue
 import sys
 import threading
 import time
 import zlib
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from multiprocessing.connection import Connection
 
 import redis
 from django.conf import settings
-from django.db import close_old_connections, connections
+from django.db import DatabaseError, connections
 
+from fleet.db import drop_broken_connections
 from missions.selectors import robots_with_missions
 from missions.services import robot_step
 from workers import livestate, metrics
 from workers.publish import publish
-from workers.steps import request_steps, take_requested
+from workers.steps import take_requested
 
 logger = logging.getLogger(__name__)
 
@@ -34,6 +37,30 @@ logger = logging.getLogger(__name__)
 # at Python's default 5 ms a reply waited up to that long behind one thread's Python code, after every
 # round trip of a step (bench/README.md has what 0.5 ms did to step latency).
 SWITCH_INTERVAL_SECONDS = 0.0005
+# A failed step (PostgreSQL or Redis away) is tried again after this long, doubling per failure in a row.
+RETRY_FIRST_SECONDS = 0.5
+RETRY_MAX_SECONDS = 10.0
+
+
+def retry_delay(failures: int) -> float:
+    """Seconds before the next try of a step that failed `failures` times in a row."""
+    return min(RETRY_MAX_SECONDS, RETRY_FIRST_SECONDS * 2 ** (failures - 1))
+
+
+def keep_trying(what: str, action: Callable[[], None]) -> None:
+    """Run `action` until it does not raise, with backoff: for what a process does once at its start and
+    cannot do without PostgreSQL and Redis, which may be away just then."""
+    failures = 0
+    while True:
+        try:
+            action()
+            return
+        except Exception:
+            failures += 1
+            delay = retry_delay(failures)
+            logger.warning("%s failed; trying again in %.1f s", what, delay, exc_info=failures == 1)
+            drop_broken_connections()
+            time.sleep(delay)
 
 
 def settle_long_lived_process() -> None:
@@ -86,6 +113,8 @@ class StepRunner:
     At most one step per robot waits in the queue: a request for a robot whose step is already queued adds
     nothing, one for a robot whose step is running queues one more, so a change that arrives during a step
     is always seen. The threads overlap the steps' waits on PostgreSQL, Redis and each other's row locks.
+    A step that fails is requested again with backoff until it runs: nothing else would step a robot
+    whose last state arrived while PostgreSQL was away.
     """
 
     def __init__(self, threads: int) -> None:
@@ -93,6 +122,8 @@ class StepRunner:
         self._queue: queue.SimpleQueue[tuple[str, float]] = queue.SimpleQueue()
         self._queued: set[str] = set()
         self._lock = threading.Lock()
+        self._failures: dict[str, int] = {}  # robot -> its steps that failed in a row
+        self._retries: list[tuple[float, str, float]] = []  # heap of (due, monotonic s; robot; at)
 
     def request(self, names: Iterable[str], *, at: float | None = None) -> None:
         """Queue a step for each robot that has none queued; `at` is when the cause happened (epoch s)."""
@@ -108,28 +139,69 @@ class StepRunner:
         with self._lock:
             return set(self._queued)
 
+    def retrying(self) -> dict[str, int]:
+        """Robots whose last step failed, and how many of their steps failed in a row."""
+        with self._lock:
+            return dict(self._failures)
+
     def start(self) -> None:
         for index in range(self.threads):
             threading.Thread(target=self._run_forever, name=f"step-{index}", daemon=True).start()
 
     def run_next(self, timeout: float | None = None) -> str | None:
-        """Run the next queued step (waiting up to `timeout` s for one); the robot's name, or None."""
-        try:
-            name, at = self._queue.get(timeout=timeout)
-        except queue.Empty:
-            return None
+        """Run the next queued step (waiting up to `timeout` s for one, or for a failed one's retry to be
+        due); the robot's name, or None."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            retry_in = self._queue_due_retries()
+            wait = retry_in if deadline is None else min(retry_in or math.inf, deadline - time.monotonic())
+            try:
+                name, at = self._queue.get(timeout=None if wait is None else max(0.0, wait))
+                break
+            except queue.Empty:
+                if deadline is not None and time.monotonic() >= deadline:
+                    return None
         with self._lock:
             self._queued.discard(name)  # before the step reads anything: a later change queues another
         try:
             run_step(name, requested_at=at)
-        except Exception:  # one robot's failed step must not stop the others'; a worker tries it again
-            logger.exception("step of robot %s failed; handing it to a worker", name)
-            request_steps([name], at=at, worker=True)
+        except Exception:  # one robot's failed step must not stop the others'
+            self._retry_later(name, at)
+        else:
+            if name in self._failures:
+                with self._lock:
+                    self._failures.pop(name, None)
         return name
+
+    def _retry_later(self, name: str, at: float) -> None:
+        with self._lock:
+            failures = self._failures[name] = self._failures.get(name, 0) + 1
+            delay = retry_delay(failures)
+            heapq.heappush(self._retries, (time.monotonic() + delay, name, at))
+        # The traceback once per robot and outage: thousands of robots fail together while PostgreSQL is away.
+        logger.warning(
+            "step of robot %s failed (%d in a row); trying again in %.1f s",
+            name,
+            failures,
+            delay,
+            exc_info=failures == 1,
+        )
+
+    def _queue_due_retries(self) -> float | None:
+        """Queue the failed steps whose retry is due; seconds until the next one is, or None."""
+        now = time.monotonic()
+        due = []
+        with self._lock:
+            while self._retries and self._retries[0][0] <= now:
+                due.append(heapq.heappop(self._retries))
+            retry_in = self._retries[0][0] - now if self._retries else None
+        for _, name, at in due:
+            self.request([name], at=at)
+        return retry_in
 
     def _run_forever(self) -> None:
         while True:
-            close_old_connections()  # a connection broken by the last step is replaced, not reused
+            drop_broken_connections()  # a connection broken by the last step is replaced, not reused
             self.run_next()
 
     def listen(self) -> None:
@@ -191,7 +263,11 @@ class StepProcess:
         self.close()
         self.start()
         assert self._sender is not None
-        self._sender.send((sorted({*names, *robots_with_missions()}), message[1]))
+        self._sender.send(message)
+        try:
+            self._sender.send((robots_with_missions(), message[1]))
+        except DatabaseError:  # PostgreSQL away: beat's sweep finds the robots whose step was lost
+            logger.exception("could not step every robot with work")
 
     def close(self) -> None:
         """Close the pipe, which ends the child (a step it is running is rolled back), and wait for it."""

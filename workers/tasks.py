@@ -1,17 +1,19 @@
 """Celery tasks: thin wrappers that call services and own only queueing and retry policy."""
 
 import logging
+import threading
 
 import requests
 from celery import Task, shared_task
 from celery.signals import worker_ready
 from django.conf import settings
+from django.db import connections
 
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished
 from robots.services import robot_check_heartbeats
 from workers import steps
-from workers.stepper import run_step
+from workers.stepper import keep_trying, retry_delay, run_step
 
 logger = logging.getLogger(__name__)
 
@@ -19,10 +21,14 @@ logger = logging.getLogger(__name__)
 RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 
 
-@shared_task(name="fleet.step_robot", ignore_result=True)
-def step_robot(name: str, requested_at: float | None = None) -> None:
-    steps.step_started(name)
-    run_step(name, requested_at=requested_at)
+@shared_task(name="fleet.step_robot", bind=True, ignore_result=True, max_retries=None)
+def step_robot(self: Task, name: str, requested_at: float | None = None) -> None:
+    """A step that fails (PostgreSQL or Redis away) is retried with backoff until it runs."""
+    try:
+        steps.step_started(name)
+        run_step(name, requested_at=requested_at)
+    except Exception as error:
+        raise self.retry(countdown=retry_delay(self.request.retries + 1), exc=error) from error
 
 
 @shared_task(name="fleet.run_notify", bind=True, ignore_result=True, max_retries=None)
@@ -55,7 +61,24 @@ def sweep() -> None:
     steps.request_steps(mission_selectors.robots_due_for_step())
 
 
+@shared_task(name="fleet.step_stalled", ignore_result=True)
+def step_stalled() -> None:
+    """Step robots that finished their mission's order while the mission did not move on."""
+    steps.request_steps(mission_selectors.robots_stalled())
+
+
 @worker_ready.connect
 def _resume_after_restart(**kwargs: object) -> None:
-    """A worker killed mid-step loses that step: step every robot with work once at start."""
-    steps.request_steps(mission_selectors.robots_with_missions())
+    """A worker killed mid-step loses that step: step every robot with work once at start, as soon as
+    PostgreSQL and Redis let it."""
+    threading.Thread(target=_step_robots_with_missions, name="resume", daemon=True).start()
+
+
+def _step_robots_with_missions() -> None:
+    try:
+        keep_trying(
+            "stepping every robot with work",
+            lambda: steps.request_steps(mission_selectors.robots_with_missions()),
+        )
+    finally:
+        connections.close_all()  # this thread's

@@ -2,9 +2,10 @@
 
 from django.db import transaction
 
-from workers.steps import request_steps
+from workers.steps import request_steps_or_later
 
 
 def wake_robot(name: str) -> None:
-    """Step robot `name` once the current transaction commits (so the worker sees the change)."""
-    transaction.on_commit(lambda: request_steps([name]))
+    """Step robot `name` once the current transaction commits (so the worker sees the change); if Redis is
+    away, once it is back: the change is committed, so the request that made it succeeds."""
+    transaction.on_commit(lambda: request_steps_or_later([name]))

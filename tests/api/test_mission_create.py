@@ -8,8 +8,13 @@ import pytest
 from missions.models import Mission
 from tests.api.readme import README_MISSIONS
 from tests.factories import MissionFactory
+from tests.private_redis import PrivateRedis, live_state_in
+from tests.waiting import wait_for
+from workers.steps import step_marker_key
 
 pytestmark = pytest.mark.django_db
+
+ROUTE_TREE = [{"route": {"waypoints": [{"x": 1.0, "y": 2.0, "theta": 0.0, "map_id": "map"}]}}]
 
 KINDS = ("selector", "sequence", "route", "move", "action", "notify", "constant")
 GENERATED_NAME = re.compile(r"[a-z2-7]{26}")
@@ -447,3 +452,22 @@ def test_an_invalid_body_leaves_nothing_behind_for_the_next_one(api):
 
     assert response.status_code == 200, response.json()
     assert response.json()["mission_tree"][0]["route"] == {"waypoints": [waypoint(1, 2)]}
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_mission_posted_while_redis_is_away_is_created_and_its_robot_stepped_once_redis_is_back(
+    api, tmp_path
+):
+    private = PrivateRedis(tmp_path)
+    with live_state_in(private.url):  # nothing listens there yet
+        response = api.post(
+            "/mission", {"robot": "redisless01", "mission_tree": ROUTE_TREE, "name": "m-redisless"}
+        )
+
+        assert response.status_code == 200, response.content
+        assert Mission.objects.filter(name="m-redisless", robot="redisless01").exists()
+        private.start()
+        try:
+            wait_for(lambda: private.client().exists(step_marker_key("redisless01")), timeout=10)
+        finally:
+            private.kill()

@@ -675,6 +675,46 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
     assert [worker_step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]
 
 
+def test_robot_check_heartbeats_marks_a_robot_heard_but_stored_offline_online(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    """A bridge killed between marking a robot online in Redis and in PostgreSQL: the robot publishes,
+    Redis knows it, its row says offline. The heartbeat check puts that right, whatever the set holds."""
+    in_set, not_in_set = make_robot(heartbeat_timeout=5.0), make_robot(heartbeat_timeout=5.0)
+    bridge.directory.reload()
+    bridge.handle([state_message(in_set), state_message(not_in_set)])
+    Robot.objects.filter(name__in=[in_set.name, not_in_set.name]).update(online=False)
+    livestate.client().srem(livestate.ONLINE_SET, not_in_set.name)
+    InstantAction.objects.filter(robot_id__in=[in_set.name, not_in_set.name]).delete()
+    for robot in (in_set, not_in_set):
+        worker_step_requested(robot)
+
+    changed = robot_check_heartbeats(now=time.time())
+
+    assert sorted(changed) == sorted([in_set.name, not_in_set.name])
+    assert [_reload(r).online for r in (in_set, not_in_set)] == [True, True]
+    assert livestate.client().smismember(livestate.ONLINE_SET, [in_set.name, not_in_set.name]) == [1, 1]
+    assert [worker_step_requested(r) for r in (in_set, not_in_set)] == [True, True]
+    assert InstantAction.objects.filter(robot_id=in_set.name, action_type=FACTSHEET_REQUEST).count() == 1
+    assert robot_check_heartbeats(now=time.time()) == []  # nothing left to put right
+
+
+def test_a_robot_that_said_it_is_offline_stays_offline_until_heard_again(
+    bridge: Bridge, make_robot: MakeRobot
+) -> None:
+    robot = make_robot(heartbeat_timeout=5.0)
+    bridge.directory.reload()
+    bridge.handle([state_message(robot, header_id=1)])
+    assert _reload(robot).online is True
+
+    bridge.handle([connection_message(robot, ConnectionState.OFFLINE)])
+    assert robot_check_heartbeats(now=time.time()) == []  # heard 0 s ago, but said so since
+
+    assert _reload(robot).online is False
+    bridge.handle([state_message(robot, header_id=2)])
+    assert _reload(robot).online is True
+
+
 @contextmanager
 def held(sql: str, params: list[Any]) -> Iterator[None]:
     """`sql` (a locking statement) run and its locks held by another connection, as a step holds its rows;

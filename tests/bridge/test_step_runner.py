@@ -13,9 +13,8 @@ from django.db import connection, transaction
 
 from missions.choices import MissionState
 from missions.models import Mission
-from missions.services import mission_create
+from missions.services import StepOutcome, mission_create, robot_step
 from robots.models import Robot
-from tests.bridge.messages import worker_step_requested
 from tests.bridge.test_robot_step import put_state
 from workers import livestate, metrics, stepper
 from workers.stepper import StepProcess, StepProcesses, StepRunner
@@ -86,23 +85,49 @@ def test_a_request_while_the_robots_step_runs_queues_one_more(make_robot: MakeRo
     assert runner.queued() == {robot.name}
 
 
-def test_a_failed_step_is_logged_and_handed_to_a_worker(
+def test_a_failed_step_is_retried_with_backoff_until_it_runs(
     make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    robot = make_robot(prefix="runner")
-    worker_step_requested(robot)
+    robot, mission = _robot_with_mission(make_robot)
+    monkeypatch.setattr(stepper, "RETRY_FIRST_SECONDS", 0.2)
+    failures_left = [2]
 
-    def broken_step(*, name: str) -> None:
-        raise RuntimeError("database went away")
+    def step_while_the_database_is_away(*, name: str) -> StepOutcome:
+        if failures_left[0]:
+            failures_left[0] -= 1
+            raise RuntimeError("database went away")
+        return robot_step(name=name)
 
-    monkeypatch.setattr(stepper, "robot_step", broken_step)
+    monkeypatch.setattr(stepper, "robot_step", step_while_the_database_is_away)
     runner = StepRunner(threads=1)
     runner.request([robot.name])
 
+    started = time.monotonic()
     assert runner.run_next(timeout=0) == robot.name
+    assert runner.retrying() == {robot.name: 1}
+    assert runner.queued() == set()  # not at once: after the backoff
+    assert runner.run_next(timeout=5) == robot.name
+    assert runner.retrying() == {robot.name: 2}
+    assert runner.run_next(timeout=5) == robot.name
 
-    assert worker_step_requested(robot)
-    assert f"step of robot {robot.name} failed" in caplog.text
+    assert time.monotonic() - started >= 0.2 + 0.4  # waited 0.2 s, then twice that
+    assert runner.retrying() == {}
+    assert Mission.objects.get(name=mission.name).state == MissionState.RUNNING
+    assert f"step of robot {robot.name} failed (1 in a row); trying again in 0.2 s" in caplog.text
+    assert f"step of robot {robot.name} failed (2 in a row); trying again in 0.4 s" in caplog.text
+    assert caplog.text.count("RuntimeError: database went away") == 1  # the traceback once
+
+
+def test_retry_delays_double_up_to_a_bound() -> None:
+    delays = [stepper.retry_delay(failures) for failures in range(1, 10)]
+
+    assert delays[:3] == [
+        stepper.RETRY_FIRST_SECONDS,
+        2 * stepper.RETRY_FIRST_SECONDS,
+        4 * stepper.RETRY_FIRST_SECONDS,
+    ]
+    assert delays[-1] == stepper.RETRY_MAX_SECONDS
+    assert delays == sorted(delays)
 
 
 def _wait_until_running(mission: str) -> bool:

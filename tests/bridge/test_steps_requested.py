@@ -4,6 +4,7 @@ real Redis, PostgreSQL and a real bridge step process."""
 import time
 import uuid
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import orjson
 import pytest
@@ -14,6 +15,8 @@ from missions.models import Mission
 from missions.services import mission_create
 from robots.models import Robot
 from tests.bridge.test_robot_step import put_state
+from tests.private_redis import PrivateRedis, live_state_in
+from tests.waiting import wait_for
 from workers import livestate, steps
 from workers.stepper import StepProcess
 
@@ -72,13 +75,21 @@ def test_while_no_bridge_listens_steps_go_to_celery_workers(names: list[str]) ->
     assert [bridge_requests(name) for name in names] == [[], []]
 
 
-def test_a_step_for_a_worker_goes_to_celery_even_while_a_bridge_listens(names: list[str]) -> None:
-    listen()
+def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
+    names: list[str], tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    private = PrivateRedis(tmp_path)
+    with live_state_in(private.url):
+        steps.request_steps_or_later(names[:1])  # nothing listens on the port yet: no error either
+        assert "not queued" in caplog.text
 
-    steps.request_steps(names[:1], worker=True)
+        private.start()
+        try:
+            wait_for(lambda: private.client().exists(steps.step_marker_key(names[0])), timeout=10)
+        finally:
+            private.kill()
 
-    assert celery_steps(names[0]) == 1
-    assert bridge_requests(names[0]) == []
+    assert celery_steps(names[0]) == 1  # the broker was up all along
 
 
 def test_a_robot_whose_step_is_queued_is_not_queued_again_until_its_step_is_taken(names: list[str]) -> None:

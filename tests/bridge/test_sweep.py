@@ -7,15 +7,17 @@ from datetime import timedelta
 from django.conf import settings
 from django.utils import timezone
 
+from missions.choices import MissionState
 from missions.dispatch import ORDER_ECHO
 from missions.models import Mission
-from missions.selectors import robots_due_for_step
+from missions.selectors import STALLED_MISSION_SECONDS, robots_due_for_step, robots_stalled
 from missions.services import robot_step
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
 from vda5050.models import OrderContent
 from workers.bridge import Bridge
 
+END = (5.0, 6.0, 0.0, "map")  # where running_order's route ends
 RESEND_DUE = timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS + 1)
 
 
@@ -83,3 +85,45 @@ def test_a_timed_out_mission_is_due_whatever_the_robot_holds(bridge: Bridge, rob
     timeout = timedelta(seconds=Mission.objects.get(robot=robot.name).timeout + 1)
 
     assert robot.name in robots_due_for_step(now=timezone.now() + timeout)
+
+
+# --- stalled missions ----------------------------------------------------------------------------------
+
+STALLED = timedelta(seconds=STALLED_MISSION_SECONDS + 1)
+
+
+def test_a_robot_idle_at_the_end_of_its_missions_order_is_stepped_once_the_mission_stalls(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """The state that ended the order was stored, but its step was lost (its process killed while PostgreSQL
+    was away): nothing but this check steps the robot again, which now sends nothing new."""
+    order_id = running_order(bridge, robot)
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, last_node_sequence_id=2, pose=END)],
+        received_at=after_the_order(),
+    )
+
+    assert robot.name not in robots_stalled()  # the state's own step may still come
+    assert robot.name in robots_stalled(now=timezone.now() + STALLED)
+
+    robot_step(name=robot.name)
+    assert Mission.objects.get(robot=robot.name).state == MissionState.COMPLETED
+    assert robot.name not in robots_stalled(now=timezone.now() + STALLED)
+
+
+def test_a_robot_still_on_its_missions_order_or_on_another_is_not_stalled(
+    bridge: Bridge, robot: Robot
+) -> None:
+    order_id = running_order(bridge, robot)
+    later = timezone.now() + STALLED
+
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])],
+        received_at=after_the_order(),
+    )
+    assert robot.name not in robots_stalled(now=later)  # driving it
+
+    bridge.handle(
+        [state_message(robot, header_id=3, at=2.0, order_id="elsewhere-n0")], received_at=time.time()
+    )
+    assert robot.name not in robots_stalled(now=later)  # idle, but on an order not the mission's
