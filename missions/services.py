@@ -9,10 +9,10 @@ import logging
 from collections.abc import Mapping
 from contextlib import nullcontext
 from dataclasses import dataclass, field, fields, replace
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 from enum import Enum, auto
 from functools import cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import orjson
 from django.conf import settings
@@ -30,7 +30,7 @@ from missions.models import Mission
 from robots.models import InstantAction, Robot
 from robots.selectors import robot_unfinished_instant_actions
 from robots.services import robot_rows_delete
-from vda5050.codec import parse_state
+from vda5050.codec import encode, header_for, parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
 from vda5050.topics import RobotAddress, Topic
@@ -277,6 +277,7 @@ MISSION_INSERT_SQL = f"""
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
+        r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
         EXISTS (
             SELECT 1 FROM {InstantAction._meta.db_table} a
@@ -311,6 +312,14 @@ STEP_STATUS_FIELDS = (
 )
 
 
+class WireMessage(NamedTuple):
+    """A message for the robot as it goes on the wire: its topic, headerId and encoded bytes."""
+
+    topic: Topic
+    header_id: int
+    payload: bytes
+
+
 @dataclass
 class StepOutcome:
     """What a step decided that happens outside the database: messages to publish, notify nodes to run."""
@@ -322,6 +331,9 @@ class StepOutcome:
     finished: list[dispatch.MissionRecord] = field(default_factory=list)
     rejections: int = 0
     header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
+    # What to publish, in this order: `messages` encoded, after those of an earlier step that may not
+    # have gone out (`_wire_messages`).
+    wire: list[WireMessage] = field(default_factory=list)
 
 
 def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
@@ -329,9 +341,10 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
 
     Runs under the robot's row lock, so steps of one robot are serialized across workers; everything it
     decides is stored before the caller publishes, so a crash in between only delays a (re)send. The
-    messages' headerIds are drawn in the same transaction, from counters on the robot's row. A mission
-    queued while the step ended the robot's last one gets a transaction more (QUEUE_GREW_SQL), at once:
-    a step requested instead would wait behind every other robot's.
+    messages' headerIds are drawn in the same transaction, from counters on the robot's row, and the
+    messages kept there until a later step knows they went out (`_wire_messages`). A mission queued while
+    the step ended the robot's last one gets a transaction more (QUEUE_GREW_SQL), at once: a step
+    requested instead would wait behind every other robot's.
     """
     outcome = StepOutcome()
     while _robot_step_transaction(name, now or timezone.now(), outcome):
@@ -342,30 +355,86 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
 def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> bool:
     """One transaction of a step, adding to `outcome`; True if the robot needs another one."""
     first = len(outcome.messages)
-    # Open across the transaction: the headerIds drawn at its end and the look at the queue are read once
-    # it has committed, from the reply that also brings the COMMIT's (reading them inside would cost a
-    # round trip of its own).
+    # Open across the transaction: the look at the queue is read once it has committed, from the reply
+    # that also brings the COMMIT's (reading it inside would cost a round trip of its own).
     with (
-        connection.cursor() as header_cursor,
+        connection.cursor() as outbox_cursor,
         connection.cursor() as lock_cursor,
         connection.cursor() as queue_cursor,
     ):
         with pipelined_transaction():
-            end = _robot_step_locked(name, now, outcome)
+            end, wire = _robot_step_locked(name, now, outcome)
             if end is StepEnd.ROBOT_DELETED:
                 outcome.messages.clear()  # the robot is gone: nothing more is sent to it
-            elif len(outcome.messages) > first:
-                _header_ids_draw(header_cursor, name, outcome.messages[first:])
+            elif wire is not None:
+                _wire_messages(outbox_cursor, name, wire, outcome, first)
             if end is StepEnd.QUEUE_RAN_DRY:
                 lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name])
                 queue_cursor.execute(QUEUE_GREW_SQL, [name])
         if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
             outcome.header_ids.clear()
+            outcome.wire.clear()
             transaction.on_commit(lambda: livestate.forget(name))
             return False
-        if len(outcome.messages) > first:
-            outcome.header_ids += _numbered(outcome.messages[first:], header_cursor.fetchone())
         return end is StepEnd.QUEUE_RAN_DRY and queue_cursor.fetchone()[0]
+
+
+@dataclass
+class _RobotWire:
+    """What a step transaction read of the robot's messages: the next headerId on each topic, the outbox
+    (the latest messages it was given, as `_wire_messages` stores them), and the headerId last published
+    on each topic as far as Redis knows."""
+
+    next_header_ids: dict[Topic, int]
+    outbox: list[dict[str, Any]]
+    published: dict[str, int]
+
+
+# Messages kept in a robot's outbox at most: those of its last steps that may not have gone out.
+OUTBOX_LIMIT = 16
+OUTBOX_SQL = f"""
+    UPDATE {Robot._meta.db_table}
+    SET next_order_header_id = %s, next_instant_actions_header_id = %s, outbox = %s WHERE name = %s
+"""
+
+
+def _wire_messages(
+    cursor: CursorWrapper, name: str, wire: _RobotWire, outcome: StepOutcome, first: int
+) -> None:
+    """Number and encode the transaction's new messages, keep them in the robot's outbox with those of its
+    earlier steps that Redis does not know to be published, and put all of those on `outcome.wire`.
+
+    A process killed between a step's COMMIT and its publish would otherwise leave its headerIds unsent
+    for ever: the next step sends them first, identical to the byte. A message that did go out meanwhile
+    (its publish was in flight, or Redis lost the mark) goes out twice, identically: a duplicate, not a
+    gap and never two messages with one headerId.
+    """
+    unsent = [entry for entry in wire.outbox if entry["header_id"] > wire.published.get(entry["topic"], -1)]
+    new = []
+    stamped_at = datetime.now(UTC)
+    assert outcome.address is not None  # set by the step that read `wire`
+    for message in outcome.messages[first:]:
+        header_id = wire.next_header_ids[message.topic]
+        wire.next_header_ids[message.topic] += 1
+        header = header_for(outcome.address, header_id=header_id, at=stamped_at)
+        payload = encode(message.content, header, instant_actions_key=outcome.instant_actions_key)
+        new.append({"topic": message.topic.value, "header_id": header_id, "payload": payload.decode()})
+        outcome.header_ids.append(header_id)
+    if new:
+        cursor.execute(
+            OUTBOX_SQL,
+            [
+                wire.next_header_ids[Topic.ORDER],
+                wire.next_header_ids[Topic.INSTANT_ACTIONS],
+                jsonb((unsent + new)[-OUTBOX_LIMIT:]),
+                name,
+            ],
+        )
+    queued = {(message.topic, message.header_id) for message in outcome.wire}
+    for entry in unsent + new:
+        topic = Topic(entry["topic"])
+        if (topic, entry["header_id"]) not in queued:  # a step's second transaction reads the first's
+            outcome.wire.append(WireMessage(topic, entry["header_id"], entry["payload"].encode()))
 
 
 class StepEnd(Enum):
@@ -385,8 +454,9 @@ QUEUE_GREW_SQL = f"""
 """
 
 
-def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEnd:
-    """The step inside its transaction, from taking the robot's row lock on, adding to `outcome`."""
+def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[StepEnd, _RobotWire | None]:
+    """The step inside its transaction, from taking the robot's row lock on, adding to `outcome`; also
+    what it read of the robot's messages (None if there is no robot of that name)."""
     with connection.cursor() as robot_cursor, connection.cursor() as missions_cursor:
         robot_cursor.execute(ROBOT_FOR_STEP_SQL, [name])
         # The running mission and the next queued one: a step that ends a mission usually starts the next.
@@ -394,7 +464,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEn
         row = robot_cursor.fetchone()
         upcoming = _mission_records(missions_cursor.fetchall())
     if row is None:
-        return StepEnd.SETTLED
+        return StepEnd.SETTLED, None
     (
         lifecycle,
         robot_state,
@@ -402,12 +472,20 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEn
         critical_level,
         switch_teleop,
         actions_key,
+        next_order_header_id,
+        next_instant_actions_header_id,
+        outbox,
         *address,
         has_actions,
     ) = row
     outcome.address = RobotAddress(*address)
     outcome.instant_actions_key = actions_key
-    state, state_arrived_at = _live_state(name)
+    state, state_arrived_at, published = _live_state(name)
+    wire = _RobotWire(
+        {Topic.ORDER: next_order_header_id, Topic.INSTANT_ACTIONS: next_instant_actions_header_id},
+        orjson.loads(outbox) if outbox is not None else [],
+        published,
+    )
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
     view = dispatch.RobotView(
         name=name,
@@ -444,41 +522,14 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> StepEn
                 _mission_row_delete(mission.name)
         if result.delete_robot:
             robot_rows_delete(name)
-            return StepEnd.ROBOT_DELETED
+            return StepEnd.ROBOT_DELETED, wire
         if mission is None or not (result.mission.done or result.delete_mission):
             break
         ended_a_mission = True
         upcoming = upcoming or _current_missions(name, count=2)
     if view.state != robot_state:
         Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
-    return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED
-
-
-# The first headerIds of a step's messages on each topic; the robot's row is the step's, locked.
-HEADER_IDS_DRAW_SQL = f"""
-    UPDATE {Robot._meta.db_table}
-    SET next_order_header_id = next_order_header_id + %(orders)s,
-        next_instant_actions_header_id = next_instant_actions_header_id + %(instant_actions)s
-    WHERE name = %(name)s
-    RETURNING next_order_header_id - %(orders)s, next_instant_actions_header_id - %(instant_actions)s
-"""
-
-
-def _header_ids_draw(cursor: CursorWrapper, name: str, messages: list[dispatch.Outgoing]) -> None:
-    """Raise the robot's counters by the messages on each topic; `_numbered` reads what this returns."""
-    topics = [message.topic for message in messages]
-    counts = {"orders": topics.count(Topic.ORDER), "instant_actions": topics.count(Topic.INSTANT_ACTIONS)}
-    cursor.execute(HEADER_IDS_DRAW_SQL, {"name": name, **counts})
-
-
-def _numbered(messages: list[dispatch.Outgoing], first: tuple[int, int]) -> list[int]:
-    """The messages' headerIds, consecutive per topic from `first` (order, instantActions)."""
-    following = {Topic.ORDER: first[0], Topic.INSTANT_ACTIONS: first[1]}
-    header_ids = []
-    for message in messages:
-        header_ids.append(following[message.topic])
-        following[message.topic] += 1
-    return header_ids
+    return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
 
 
 # A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's
@@ -549,16 +600,16 @@ def dispatch_settings() -> dispatch.DispatchSettings:
     )
 
 
-def _live_state(name: str) -> tuple[State | None, datetime | None]:
-    """The robot's latest state and when it arrived."""
-    payload, arrived_at = livestate.latest_state(name)
+def _live_state(name: str) -> tuple[State | None, datetime | None, dict[str, int]]:
+    """The robot's latest state, when it arrived, and the headerIds last published to it (per topic)."""
+    payload, arrived_at, published = livestate.latest_state(name)
     if payload is None:
-        return None, None
+        return None, None, published
     try:
-        return parse_state(payload), arrived_at
+        return parse_state(payload), arrived_at, published
     except ProtocolError:  # the bridge only stores states it could parse; a stale format is not fatal
         logger.warning("stored state of robot %s no longer parses", name)
-        return None, None
+        return None, None, published
 
 
 def _store_mission(before: dispatch.MissionRecord, after: dispatch.MissionRecord) -> None:

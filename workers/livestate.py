@@ -189,16 +189,36 @@ def stored(result: int | list[bytes]) -> Stored:
 
 
 class LatestState(NamedTuple):
-    """A robot's latest stored state (its JSON), and when it arrived (None if not recorded)."""
+    """A robot's latest stored state (its JSON), when it arrived (None if not recorded), and the headerId
+    last published to the robot on each topic (`mark_published`; a topic missing if not known)."""
 
     payload: bytes | None
     arrived_at: datetime | None
+    published: dict[str, int]
 
 
 def latest_state(name: str) -> LatestState:
     """On every step's path: one `round_trip`."""
-    [(payload, at)] = round_trip([("HMGET", robot_key(name), "state", "at")])
-    return LatestState(payload, _arrival(at))
+    fields = [_published_field(topic) for topic in PUBLISHED_TOPICS]
+    [(payload, at, *published)] = round_trip([("HMGET", robot_key(name), "state", "at", *fields)])
+    return LatestState(
+        payload,
+        _arrival(at),
+        {topic: int(hid) for topic, hid in zip(PUBLISHED_TOPICS, published, strict=True) if hid is not None},
+    )
+
+
+# The topics on which the server sends robots messages (vda5050.topics.Topic values).
+PUBLISHED_TOPICS = ("order", "instantActions")
+
+
+def _published_field(topic: str) -> str:
+    return f"published:{topic}"
+
+
+def mark_published(pipe: redis.client.Pipeline, name: str, header_ids: dict[str, int]) -> None:
+    """Queue on `pipe`: the messages up to these headerIds (topic -> headerId) went out to the robot."""
+    pipe.hset(robot_key(name), mapping={_published_field(topic): hid for topic, hid in header_ids.items()})
 
 
 @dataclass(frozen=True)

@@ -90,15 +90,9 @@ def run_step(name: str, *, requested_at: float | None = None) -> None:
             state=mission.state,
             failure_category=mission.failure_category or "",
         )
-    if outcome.messages:
+    if outcome.wire:
         assert outcome.address is not None  # a step sends messages only to a robot it found
-        publish(
-            address=outcome.address,
-            instant_actions_key=outcome.instant_actions_key,
-            messages=outcome.messages,
-            header_ids=outcome.header_ids,
-            counters=counters,
-        )
+        publish(name=name, address=outcome.address, messages=outcome.wire, counters=counters)
     livestate.execute(counters)  # after the messages are out: the step's metrics wait, its robot does not
     if outcome.notifies:
         from workers.tasks import run_notify  # tasks import this module

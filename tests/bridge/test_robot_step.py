@@ -29,6 +29,7 @@ from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
 from vda5050.topics import Topic
 from workers import livestate
+from workers.stepper import run_step
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -177,6 +178,45 @@ def test_header_ids_go_on_from_the_robots_row_when_redis_lost_everything_else(ro
     assert sorted(header_ids(outcome)) == [(Topic.INSTANT_ACTIONS, 7), (Topic.ORDER, 41)]
     stored = Robot.objects.get(name=robot.name)
     assert (stored.next_order_header_id, stored.next_instant_actions_header_id) == (42, 8)
+
+
+def on_the_wire(outcome: StepOutcome) -> list[tuple[Topic, int]]:
+    return [(message.topic, message.header_id) for message in outcome.wire]
+
+
+def test_what_a_step_killed_before_publishing_decided_goes_out_first_with_the_next_step_identically(
+    robot: Robot,
+) -> None:
+    """Its process died between COMMIT and publish: its headerIds must not be left out on the wire."""
+    create("m1", robot)
+    killed = step(robot)  # committed, never published
+    put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
+
+    resend = step(robot, after=60.0)
+
+    assert sorted(on_the_wire(killed)) == [(Topic.INSTANT_ACTIONS, 0), (Topic.ORDER, 0)]
+    assert resend.wire[:2] == killed.wire  # to the byte
+    assert sorted(on_the_wire(resend)[2:]) == [(Topic.INSTANT_ACTIONS, 1), (Topic.ORDER, 1)]
+
+
+def test_what_went_out_is_not_sent_again_unless_redis_lost_the_mark(robot: Robot) -> None:
+    create("m1", robot)
+    run_step(robot.name)  # publishes, and marks what it published; now, not at NOW
+    sent_at = timezone.now()
+
+    def resend(after: float) -> StepOutcome:
+        arrived_at = sent_at + timedelta(seconds=after - 5)  # well after the last send
+        put_state(robot, header_id=int(after), arrived_at=arrived_at.timestamp())
+        return robot_step(name=robot.name, now=sent_at + timedelta(seconds=after))
+
+    assert sorted(on_the_wire(resend(60))) == [(Topic.INSTANT_ACTIONS, 1), (Topic.ORDER, 1)]
+
+    livestate.client().delete(livestate.robot_key(robot.name))  # a Redis restart
+    outcome = resend(120)
+
+    # The last step's messages again, as they were (they may not have gone out), then the new ones.
+    assert sorted(on_the_wire(outcome)[:2]) == [(Topic.INSTANT_ACTIONS, 1), (Topic.ORDER, 1)]
+    assert sorted(on_the_wire(outcome)[2:]) == [(Topic.INSTANT_ACTIONS, 2), (Topic.ORDER, 2)]
 
 
 def test_an_offline_robot_keeps_its_mission_queued_and_gets_nothing(robot: Robot) -> None:
