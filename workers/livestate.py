@@ -218,7 +218,10 @@ def _published_field(topic: str) -> str:
 
 def mark_published(pipe: redis.client.Pipeline, name: str, header_ids: dict[str, int]) -> None:
     """Queue on `pipe`: the messages up to these headerIds (topic -> headerId) went out to the robot."""
-    pipe.hset(robot_key(name), mapping={_published_field(topic): hid for topic, hid in header_ids.items()})
+    if header_ids:
+        pipe.hset(
+            robot_key(name), mapping={_published_field(topic): hid for topic, hid in header_ids.items()}
+        )
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,11 @@ from collections.abc import Iterator
 import pytest
 from django.conf import settings
 
+import workers.publish
+from missions.services import WireMessage
 from tests.waiting import wait_for
+from vda5050.topics import RobotAddress, Topic
+from workers import livestate
 from workers.mqtt import Publisher, new_client
 
 
@@ -103,3 +107,29 @@ def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_i
         assert rest == padding
         by_thread.setdefault(int(thread), []).append(int(index))
     assert by_thread == {thread: list(range(100)) for thread in range(4)}
+
+
+def test_messages_the_broker_connection_dropped_do_not_count_as_published(
+    settings, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """They go out again with the robot's next step (`missions.services._wire_messages`)."""
+    with socket.socket() as probe:  # a port nothing listens on: the broker is down
+        probe.bind(("127.0.0.1", 0))
+        settings.MQTT_PORT = probe.getsockname()[1]
+    down = Publisher()
+    monkeypatch.setattr(workers.publish, "publisher", lambda: down)
+    name = f"dropped-{uuid.uuid4().hex[:8]}"
+    address = RobotAddress("uagv", "RobotCompany", name)
+    try:
+        assert down.publish("test/dropped", b"{}") is False
+
+        pipe = livestate.client().pipeline()
+        workers.publish.publish(
+            name=name, address=address, messages=[WireMessage(Topic.ORDER, 0, b"{}")], counters=pipe
+        )
+        pipe.execute()
+
+        assert livestate.latest_state(name).published == {}
+    finally:
+        down._client.loop_stop()
+        livestate.forget(name)
