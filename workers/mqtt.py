@@ -64,16 +64,21 @@ class Publisher:
     the engine re-sends whatever the robot does not acknowledge."""
 
     def __init__(self) -> None:
+        self._connected = threading.Event()
         self._client = new_client("publisher")
         self._client.on_connect = self._on_connect
         self._client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
         self._client.loop_start()
 
-    @staticmethod
+    def wait_connected(self, timeout: float) -> bool:
+        """Wait up to `timeout` s for the first connection: a message published before it is dropped."""
+        return self._connected.wait(timeout)
+
     def _on_connect(
-        client: mqtt.Client, userdata: object, flags: object, reason: object, props: object
+        self, client: mqtt.Client, userdata: object, flags: object, reason: object, props: object
     ) -> None:
         logger.info("publisher connected to MQTT broker: %s", reason)
+        self._connected.set()
 
     def publish(self, topic: str, payload: bytes, *, qos: int = 0) -> bool:
         """Queue the message and write it from this thread; False if paho dropped it (no connection).
@@ -86,15 +91,19 @@ class Publisher:
         return info.rc == mqtt.MQTT_ERR_SUCCESS
 
 
+# How long a process's first message waits for the publisher's connection (the broker may be down).
+FIRST_CONNECT_SECONDS = 5.0
 _publisher: Publisher | None = None
 _publisher_pid: int | None = None
 _publisher_lock = threading.Lock()
 
 
 def publisher() -> Publisher:
-    """The publisher of this process (created after a fork, never shared across processes)."""
+    """The publisher of this process (created after a fork, never shared across processes), connected
+    unless the broker did not answer within FIRST_CONNECT_SECONDS."""
     global _publisher, _publisher_pid
     with _publisher_lock:
         if _publisher is None or _publisher_pid != os.getpid():
             _publisher, _publisher_pid = Publisher(), os.getpid()
+            _publisher.wait_connected(FIRST_CONNECT_SECONDS)
         return _publisher

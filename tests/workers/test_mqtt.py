@@ -8,6 +8,7 @@ from collections.abc import Iterator
 import pytest
 from django.conf import settings
 
+import workers.mqtt
 import workers.publish
 from missions.services import WireMessage
 from tests.waiting import wait_for
@@ -57,7 +58,7 @@ def received(topic: str) -> Iterator[list[bytes]]:
 def publisher() -> Iterator[Publisher]:
     """A connected publisher of its own (not the process's, which other tests share)."""
     publisher = Publisher()
-    wait_for(publisher._client.is_connected)
+    assert publisher.wait_connected(10)
     yield publisher
     publisher._client.disconnect()
     publisher._client.loop_stop()
@@ -133,3 +134,13 @@ def test_messages_the_broker_connection_dropped_do_not_count_as_published(
     finally:
         down._client.loop_stop()
         livestate.forget(name)
+
+
+def test_a_processs_first_message_goes_out(monkeypatch: pytest.MonkeyPatch, topic: str, received) -> None:
+    """Not dropped because the new publisher had not connected yet (a step worker's first order)."""
+    monkeypatch.setattr(workers.mqtt, "_publisher", None)
+    try:
+        assert workers.mqtt.publisher().publish(topic, b"first") is True
+        wait_for(lambda: received == [b"first"])
+    finally:
+        workers.mqtt.publisher()._client.loop_stop()
