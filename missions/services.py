@@ -405,9 +405,9 @@ def _wire_messages(
     earlier steps that Redis does not know to be published, and put all of those on `outcome.wire`.
 
     A process killed between a step's COMMIT and its publish would otherwise leave its headerIds unsent
-    for ever: the next step sends them first, identical to the byte. A message that did go out meanwhile
-    (its publish was in flight, or Redis lost the mark) goes out twice, identically: a duplicate, not a
-    gap and never two messages with one headerId.
+    for ever: the next step sends them first, identical to the byte. One whose publish is only in flight
+    sends it itself: the publisher claims each headerId in Redis first (`workers.publish`), so a message
+    goes out once, and, only when Redis lost the claims, at most twice, identically.
     """
     unsent = [entry for entry in wire.outbox if entry["header_id"] > wire.published.get(entry["topic"], -1)]
     new = []

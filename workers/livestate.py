@@ -53,10 +53,36 @@ end
 return added
 """
 
+# Claims the right to publish messages to a robot: each (field, headerId) in turn, if the field (the last
+# headerId published on a topic) is below it, raises the field to it. Returns 1/0 per message: claimed or
+# not (another step published it already). KEYS: robot hash. ARGV: field, headerId, field, headerId, ...
+_CLAIM = """
+local claimed = {}
+for i = 1, #ARGV, 2 do
+  local id = tonumber(ARGV[i + 1])
+  if id > (tonumber(redis.call('HGET', KEYS[1], ARGV[i])) or -1) then
+    redis.call('HSET', KEYS[1], ARGV[i], id)
+    claimed[#claimed + 1] = 1
+  else
+    claimed[#claimed + 1] = 0
+  end
+end
+return claimed
+"""
+
+# Gives a claim back: sets the field to ARGV[2] if it still holds ARGV[1] (nobody claimed past it since).
+# KEYS: robot hash. ARGV: field, claimed headerId, headerId to go back to.
+_UNCLAIM = """
+if redis.call('HGET', KEYS[1], ARGV[1]) == ARGV[2] then redis.call('HSET', KEYS[1], ARGV[1], ARGV[3]) end
+return 0
+"""
+
 # Scripts are called by their SHA, so a pipeline of them costs one round trip (`execute`).
-_SCRIPTS = (_STORE_STATE, _MARK_ONLINE)
+_SCRIPTS = (_STORE_STATE, _MARK_ONLINE, _CLAIM, _UNCLAIM)
 _STORE_STATE_SHA = hashlib.sha1(_STORE_STATE.encode()).hexdigest()
 _MARK_ONLINE_SHA = hashlib.sha1(_MARK_ONLINE.encode()).hexdigest()
+_CLAIM_SHA = hashlib.sha1(_CLAIM.encode()).hexdigest()
+_UNCLAIM_SHA = hashlib.sha1(_UNCLAIM.encode()).hexdigest()
 
 STALE, UNCHANGED, CHANGED = 0, 1, 2
 
@@ -216,12 +242,19 @@ def _published_field(topic: str) -> str:
     return f"published:{topic}"
 
 
-def mark_published(pipe: redis.client.Pipeline, name: str, header_ids: dict[str, int]) -> None:
-    """Queue on `pipe`: the messages up to these headerIds (topic -> headerId) went out to the robot."""
-    if header_ids:
-        pipe.hset(
-            robot_key(name), mapping={_published_field(topic): hid for topic, hid in header_ids.items()}
-        )
+def claim_published(name: str, messages: list[tuple[str, int]]) -> list[bool]:
+    """For each (topic, headerId), in order, whether this caller is the one to publish it: the first to
+    claim a headerId gets it, so a message two steps both hold goes out once. One round trip."""
+    args = [value for topic, header_id in messages for value in (_published_field(topic), header_id)]
+    pipe = client().pipeline(transaction=False)
+    pipe.evalsha(_CLAIM_SHA, 1, robot_key(name), *args)
+    return [bool(claimed) for claimed in execute(pipe)[0]]
+
+
+def unclaim_published(pipe: redis.client.Pipeline, name: str, topic: str, claimed: int, back_to: int) -> None:
+    """Queue on `pipe`: the messages after `back_to` on `topic` did not go out after all (claimed up to
+    `claimed`), so that a later step sends them; unless another step has claimed past them meanwhile."""
+    pipe.evalsha(_UNCLAIM_SHA, 1, robot_key(name), _published_field(topic), claimed, back_to)
 
 
 @dataclass(frozen=True)

@@ -11,19 +11,23 @@ from workers.mqtt import publisher
 def publish(
     *, name: str, address: RobotAddress, messages: list[WireMessage], counters: redis.client.Pipeline
 ) -> None:
-    """Send `messages` to robot `name`, and count them and mark them published in `counters` (the caller's
-    pipeline of the step's metrics, which goes to Redis after the messages are out).
+    """Send those of `messages` to robot `name` that no other step sends (`livestate.claim_published`),
+    and count them in `counters` (the caller's pipeline of the step's metrics, which goes to Redis after
+    the messages are out).
 
-    On each topic only the messages before the first one the broker connection dropped count as
-    published: the robot's next step sends the rest again, so the robot sees no headerId left out."""
-    published: dict[str, int] = {}
-    dropped: set[str] = set()
-    for message in messages:
+    A message the broker connection dropped gives its claim back, with those after it on its topic: the
+    robot's next step sends them again, so the robot sees no headerId left out."""
+    claims = livestate.claim_published(name, [(m.topic.value, m.header_id) for m in messages])
+    claimed: dict[str, int] = {}  # topic -> the last headerId claimed on it
+    dropped: dict[str, int] = {}  # topic -> the first headerId dropped on it
+    for message, mine in zip(messages, claims, strict=True):
+        if not mine:
+            continue
         topic = message.topic.value
-        if publisher().publish(topic_for(address, message.topic), message.payload):
+        claimed[topic] = message.header_id
+        if topic not in dropped and publisher().publish(topic_for(address, message.topic), message.payload):
             metrics.count(metrics.MESSAGES_OUT, pipe=counters, topic=topic)
-            if topic not in dropped:
-                published[topic] = max(message.header_id, published.get(topic, -1))
         else:
-            dropped.add(topic)
-    livestate.mark_published(counters, name, published)
+            dropped.setdefault(topic, message.header_id)
+    for topic, first in dropped.items():
+        livestate.unclaim_published(counters, name, topic, claimed[topic], first - 1)
