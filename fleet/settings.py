@@ -150,6 +150,9 @@ CELERY_TASK_REJECT_ON_WORKER_LOST = True
 CELERY_WORKER_PREFETCH_MULTIPLIER = env_int("FLEET_CELERY_PREFETCH", 4)
 CELERY_TASK_ALWAYS_EAGER = env_bool("FLEET_CELERY_EAGER", False)
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
+# A worker whose broker (Redis) is away keeps trying to reconnect however long it takes (Celery's default
+# gives up after 100 tries, and the worker with it).
+CELERY_BROKER_CONNECTION_MAX_RETRIES = None
 # Celery's Django fixup closes the database connection around every task unless told to reuse it: that
 # would cost a new PostgreSQL backend per task. Reuse it; a broken one is replaced before the next task
 # (`fleet.celery`).
