@@ -31,3 +31,9 @@ lint: install
 # The benchmark: its own stack, the runs of bench/suite.py, bench/latest.md and .png (BENCH_SUITE=quick for a smoke run).
 bench: install
 	$(PY) -m bench.suite --suite $(or $(BENCH_SUITE),full)
+
+# Fault injection, the long run: a private stack (own PostgreSQL, Redis, Mosquitto), random faults from a seed
+# (FLEET_FAULT_SEED, else random; printed), checks afterwards (tests/faults). FAULTS_ARGS adds options.
+.PHONY: faults
+faults: install
+	$(PY) -m tests.faults --robots 20 --missions 300 --fault-seconds 180 --quiet-seconds 300 $(FAULTS_ARGS)

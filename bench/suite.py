@@ -104,16 +104,18 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
             for i in range(bridges)
         },
         **{
-            _numbered("worker", i, workers): _worker("steps", f"bench-{_numbered('steps', i, workers)}", 12)
+            _numbered("worker", i, workers): worker_command(
+                "steps", f"bench-{_numbered('steps', i, workers)}", 12
+            )
             for i in range(workers)
         },
-        "notify": _worker("notify", "bench-notify", 8),
+        "notify": worker_command("notify", "bench-notify", 8),
         "beat": [CELERY, "-A", "fleet", "beat", "--schedule", "/tmp/mission-dispatch-bench-beat"],
     }
 
 
-def api_command(port: int, workers: int = 2) -> list[str]:
-    """The API as `deploy/Procfile` runs it (without its access log), on `port` of this host."""
+def api_command(port: int, workers: int = 2, *, access_log: bool = False) -> list[str]:
+    """The API as `deploy/Procfile` runs it (its access log only if asked for), on `port` of this host."""
     return [
         "nice",
         "-n",
@@ -131,6 +133,7 @@ def api_command(port: int, workers: int = 2) -> list[str]:
         "4",
         "--no-ws",
         "--respawn-failed-workers",
+        *(["--access-log"] if access_log else []),
         "fleet.wsgi:application",
     ]
 
@@ -140,8 +143,8 @@ def _numbered(name: str, index: int, count: int) -> str:
     return name if count == 1 else f"{name}-{index + 1}"
 
 
-def _worker(queue: str, node: str, threads: int) -> list[str]:
-    """A Celery worker of `queue` on `threads` threads, named `node` on this host."""
+def worker_command(queue: str, node: str, threads: int) -> list[str]:
+    """A Celery worker of `queue` on `threads` threads, named `node` on this host (as `deploy/Procfile`)."""
     return [
         CELERY,
         "-A",

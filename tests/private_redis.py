@@ -20,6 +20,25 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
+def redis_server_command(port: int, directory: Path) -> list[str]:
+    """A Redis server on 127.0.0.1:`port` that keeps nothing on disk (as the machine's)."""
+    return [
+        "redis-server",
+        "--port",
+        str(port),
+        "--bind",
+        "127.0.0.1",
+        "--save",
+        "",
+        "--appendonly",
+        "no",
+        "--dir",
+        str(directory),
+        "--protected-mode",
+        "no",
+    ]
+
+
 class PrivateRedis:
     """`redis-server` on 127.0.0.1:`port`, keeping nothing on disk, started and killed by the test."""
 
@@ -34,20 +53,7 @@ class PrivateRedis:
 
     def start(self) -> Self:
         self.process = subprocess.Popen(
-            [
-                "redis-server",
-                "--port",
-                str(self.port),
-                "--bind",
-                "127.0.0.1",
-                "--save",
-                "",
-                "--appendonly",
-                "no",
-            ],
-            cwd=self.directory,
-            stdout=subprocess.DEVNULL,
-            start_new_session=True,
+            redis_server_command(self.port, self.directory), stdout=subprocess.DEVNULL, start_new_session=True
         )
         client = self.client()
         deadline = time.monotonic() + 10

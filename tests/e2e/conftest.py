@@ -27,6 +27,7 @@ from django.db import DatabaseError, connection
 from django.test import TransactionTestCase
 from rest_framework.test import APIClient
 
+from tests.server_env import SERVER_ENV
 from tests.vda5050.schemas import validate_message
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,16 +35,6 @@ PYTHON = sys.executable
 CELERY = str(Path(PYTHON).with_name("celery"))
 WAIT_SECONDS = 60.0  # generous: the machine is shared; nothing asserts on durations
 
-# Time is compressed so the suite stays fast: short beats, quick resends, fast robots.
-SERVER_ENV = {
-    "FLEET_BEAT_PERIOD": "0.2",
-    "FLEET_ORDER_RESEND_SECONDS": "1.0",
-    "FLEET_INSTANT_ACTION_RESEND_SECONDS": "1.0",
-    "FLEET_BRIDGE_FLUSH_SECONDS": "0.2",
-    "FLEET_NOTIFY_BACKOFF_SECONDS": "0.1",
-    "FLEET_VISIBILITY_TIMEOUT": "5",
-    "FLEET_LOG_LEVEL": "INFO",
-}
 # Command lines of the scalable server processes; a test may start more of them (test_scale_out.py).
 BRIDGE = [PYTHON, "manage.py", "mqtt_bridge"]
 WORKER = [

@@ -2,7 +2,6 @@
 
 import os
 import signal
-import subprocess
 import time
 from collections import Counter
 from contextlib import suppress
@@ -13,7 +12,9 @@ import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
 
+from tests.e2e.conftest import BRIDGE, PYTHON, WORKER, Process
 from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission, wait_robot
+from tests.faults.stack import PrivateBroker
 from tests.waiting import wait_for
 from workers import livestate, metrics
 
@@ -50,16 +51,56 @@ def test_sigkill_of_a_server_process_mid_mission(api, simulator, unique, stack, 
     assert len(set(order_ids)) == 5  # every leaf got exactly one order (resends reuse the same id)
 
 
-def test_broker_restart_mid_mission(api, simulator, unique):
+def test_broker_restart_mid_mission(api, stack, unique, tmp_path):
+    """SIGKILL of the broker mid-mission, and a restart: the mission completes. The broker is the test's own
+    (never the machine's, which other tests and processes use), with a bridge, a worker and a simulator
+    of the test's own on it; the stack's bridge and worker, which publish to the machine's broker, pause
+    meanwhile, so none of this robot's steps goes out where the robot is not."""
     robot = unique("broker")
-    simulator(f"{robot},0,0", extra=("--speed", "4"))
-    create_robot(api, robot)
-    name = long_mission(api, unique, robot)
-    wait_for(lambda: get(api, "mission", name)["status"]["current_node"] >= 1, message="second leg")
-    subprocess.run(["pkill", "-x", "mosquitto"], check=False)
-    time.sleep(1)
-    subprocess.run(["mosquitto", "-d", "-c", "/etc/mosquitto/mosquitto.conf"], check=True)
-    assert wait_mission(api, name, timeout=90)["status"]["state"] == "COMPLETED"
+    with PrivateBroker(tmp_path) as broker:
+        env = {**stack.env, "FLEET_MQTT_PORT": str(broker.port)}
+        paused = [stack.processes[name] for name in ("bridge", "worker")]
+        own = [
+            Process("broker-bridge", BRIDGE, env, tmp_path / "bridge.log"),
+            Process("broker-worker", WORKER, env, tmp_path / "worker.log"),
+            Process(
+                "broker-simulator",
+                [
+                    PYTHON,
+                    "-m",
+                    "simulator",
+                    "--robots",
+                    f"{robot},0,0",
+                    "--tick_period",
+                    "0.05",
+                    "--speed",
+                    "4",
+                    "--state_period",
+                    "0.5",
+                    "--mqtt_port",
+                    str(broker.port),
+                ],
+                env,
+                tmp_path / "simulator.log",
+            ),
+        ]
+        try:
+            for process in paused:
+                process.stop()
+            for process in own:
+                process.start()
+            create_robot(api, robot)
+            name = long_mission(api, unique, robot)
+            wait_for(lambda: get(api, "mission", name)["status"]["current_node"] >= 1, message="second leg")
+            broker.kill()  # SIGKILL of the test's own broker only
+            time.sleep(1)
+            broker.start()
+            assert wait_mission(api, name, timeout=90)["status"]["state"] == "COMPLETED"
+        finally:
+            for process in reversed(own):
+                process.stop()
+            for process in paused:
+                process.start()
 
 
 def test_simulator_started_late_gets_its_mission(api, simulator, unique):

@@ -12,6 +12,7 @@ import workers.mqtt
 import workers.publish
 from missions.services import WireMessage
 from tests.waiting import wait_for
+from tests.workers.subscriber import subscribed
 from vda5050.topics import RobotAddress, Topic
 from workers import livestate
 from workers.mqtt import Publisher, new_client
@@ -40,18 +41,8 @@ def topic() -> str:
 @pytest.fixture
 def received(topic: str) -> Iterator[list[bytes]]:
     """The payloads a subscriber to `topic` receives, in order."""
-    payloads: list[bytes] = []
-    subscribed = threading.Event()
-    client = new_client("test-subscriber")
-    client.on_message = lambda client, userdata, message: payloads.append(message.payload)
-    client.on_subscribe = lambda *args: subscribed.set()
-    client.on_connect = lambda client, *args: client.subscribe(topic)
-    client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
-    client.loop_start()
-    assert subscribed.wait(10)
-    yield payloads
-    client.disconnect()
-    client.loop_stop()
+    with subscribed(topic) as payloads:
+        yield payloads
 
 
 @pytest.fixture

@@ -1,18 +1,16 @@
 """Publishing a step's messages (`workers.publish`) against the real Redis and broker: each headerId goes
 out once, however many steps hold it."""
 
-import threading
 import uuid
 from collections.abc import Iterator
 
 import pytest
-from django.conf import settings
 
 from missions.services import WireMessage
 from tests.waiting import wait_for
+from tests.workers.subscriber import subscribed
 from vda5050.topics import RobotAddress, Topic, topic_for
 from workers import livestate
-from workers.mqtt import new_client
 from workers.publish import publish
 
 
@@ -26,18 +24,8 @@ def address() -> Iterator[RobotAddress]:
 @pytest.fixture
 def orders(address: RobotAddress) -> Iterator[list[bytes]]:
     """The payloads the broker delivers on the robot's order topic, in order."""
-    payloads: list[bytes] = []
-    subscribed = threading.Event()
-    client = new_client("test-orders")
-    client.on_message = lambda client, userdata, message: payloads.append(message.payload)
-    client.on_subscribe = lambda *args: subscribed.set()
-    client.on_connect = lambda client, *args: client.subscribe(topic_for(address, Topic.ORDER))
-    client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
-    client.loop_start()
-    assert subscribed.wait(10)
-    yield payloads
-    client.disconnect()
-    client.loop_stop()
+    with subscribed(topic_for(address, Topic.ORDER)) as payloads:
+        yield payloads
 
 
 def send(address: RobotAddress, *messages: WireMessage) -> None:

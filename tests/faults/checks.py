@@ -1,0 +1,542 @@
+"""The fault suite's checks: pure functions over what a run recorded, no I/O.
+
+A run records the MQTT traffic an observer saw (`WireMessage`, in arrival order), the windows in which that
+traffic may be incomplete (`Window`: broker outages, the observer reconnecting), every HTTP request the load
+made (`HttpAttempt`), when the fault injector took a service down and when it was back (`ServiceEvent`),
+processes that exited without being killed (`ProcessExit`), the missions it posted (`PostedMission`) and
+the API's final mission objects. Each check returns a `CheckResult` whose problems name the robot or mission
+concerned; `tests/faults/test_checks.py` runs each on small hand-made recordings.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+import orjson
+
+TERMINAL = frozenset({"COMPLETED", "FAILED", "CANCELED"})
+FINAL_ACTION_STATUSES = frozenset({"FINISHED", "FAILED"})
+ORDER_ID = re.compile(r"(?P<mission>.+)-n(?P<node>\d+)-r(?P<attempt>\d+)")
+# Topics the server publishes on, whose headerIds it numbers (per robot and topic).
+SERVER_TOPICS = ("order", "instantActions")
+
+
+# --- recorded data -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WireMessage:
+    """One MQTT message as the observer received it: arrival time (epoch s), topic and parsed payload."""
+
+    t: float
+    topic: str
+    data: dict[str, Any] | None  # None if the payload was not a JSON object
+
+    @property
+    def serial(self) -> str:
+        """The robot: the topic's serial-number level (`interface/version/manufacturer/serial/topic`)."""
+        levels = self.topic.split("/")
+        return levels[3] if len(levels) == 5 else self.topic
+
+    @property
+    def kind(self) -> str:
+        return self.topic.rsplit("/", 1)[-1]
+
+    @classmethod
+    def from_payload(cls, t: float, topic: str, payload: bytes) -> WireMessage:
+        try:
+            data = orjson.loads(payload)
+        except orjson.JSONDecodeError:
+            data = None
+        return cls(t, topic, data if isinstance(data, dict) else None)
+
+
+@dataclass(frozen=True)
+class Window:
+    """A time interval (epoch s) in which recorded traffic may be incomplete or a service was impaired."""
+
+    start: float
+    end: float
+    label: str = ""
+
+    def overlaps(self, lo: float, hi: float) -> bool:
+        return self.start <= hi and lo <= self.end
+
+
+@dataclass(frozen=True)
+class HttpAttempt:
+    """One HTTP request of the load: `status` None when there was no answer (`error` says why)."""
+
+    start: float
+    end: float
+    method: str
+    path: str
+    status: int | None
+    error: str | None = None
+    body: str = ""
+    # A POST answered "already exists" after an earlier attempt with the same name got no clean answer:
+    # that attempt created the object, which is what the retry wanted.
+    exists_after_retry: bool = False
+
+
+@dataclass(frozen=True)
+class ServiceEvent:
+    """The fault injector took `component` down (`kind` "down") or saw it serving again ("up")."""
+
+    t: float
+    component: str
+    kind: str
+
+
+@dataclass(frozen=True)
+class ProcessExit:
+    """A process of the stack that ended without the fault injector killing it."""
+
+    name: str
+    t: float
+    returncode: int | None
+    tail: str = ""
+
+
+@dataclass(frozen=True)
+class PostedMission:
+    """A mission the load posted: its robot and its leaves as (index in mission_tree, name)."""
+
+    name: str
+    robot: str
+    leaves: tuple[tuple[int, str], ...]
+    nodes: tuple[str, ...] = ()  # every node name of the tree (leaves and composites)
+
+
+@dataclass
+class CheckResult:
+    name: str
+    problems: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what the check looked at, or had to leave out
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+# --- helpers ------------------------------------------------------------------------------------------
+
+
+def excused(windows: Iterable[Window], lo: float, hi: float) -> Window | None:
+    """The first window overlapping [lo, hi], if any."""
+    lo, hi = min(lo, hi), max(lo, hi)
+    return next((w for w in windows if w.overlaps(lo, hi)), None)
+
+
+def parse_order_id(order_id: str) -> tuple[str, int, int] | None:
+    """Mission, node index and attempt of one of the engine's orderIds (`<mission>-n<index>-r<attempt>`)."""
+    match = ORDER_ID.fullmatch(order_id)
+    if match is None:
+        return None
+    return match["mission"], int(match["node"]), int(match["attempt"])
+
+
+def busy(state: Mapping[str, Any]) -> bool:
+    """A VDA 5050 state shows the robot busy: nodes or edges left, or an action not FINISHED/FAILED."""
+    return bool(
+        state.get("nodeStates")
+        or state.get("edgeStates")
+        or any(a.get("actionStatus") not in FINAL_ACTION_STATUSES for a in state.get("actionStates") or ())
+    )
+
+
+def _without(data: Mapping[str, Any], *keys: str) -> bytes:
+    return orjson.dumps({k: v for k, v in data.items() if k not in keys}, option=orjson.OPT_SORT_KEYS)
+
+
+def _epoch(timestamp: str | None) -> float | None:
+    if not timestamp:
+        return None
+    return datetime.fromisoformat(timestamp.replace("Z", "+00:00")).timestamp()
+
+
+def _at(t: float, origin: float | None) -> str:
+    """A time as an offset from `origin` (the fault phase's start) and as the wall clock of the logs."""
+    clock = time.strftime("%H:%M:%S", time.localtime(t)) + f".{int(t % 1 * 1000):03d}"
+    return f"t={t - origin:+.1f}s {clock}" if origin is not None else clock
+
+
+def _events_between(events: Sequence[ServiceEvent], lo: float, hi: float, origin: float | None) -> str:
+    inside = [f"{e.component} {e.kind} {_at(e.t, origin)}" for e in events if lo <= e.t <= hi]
+    return f"; faults in between: {', '.join(inside)}" if inside else ""
+
+
+# --- 1. no mission lost -------------------------------------------------------------------------------
+
+
+def check_missions(
+    posted: Sequence[PostedMission],
+    final: Mapping[str, Mapping[str, Any] | None],
+    *,
+    waited: float,
+    robots: Mapping[str, Mapping[str, Any]] | None = None,
+    unposted: Sequence[str] = (),
+) -> CheckResult:
+    """Every posted mission exists and COMPLETED (nothing in the load may fail) within `waited` seconds
+    after the faults stopped. `final` maps a mission name to the API's object (None: 404). `robots`, the
+    API's robot objects by name, only add the robot's status to a problem. `unposted`: missions the load
+    gave up posting (the API never took them)."""
+    result = CheckResult("no mission lost")
+    for name in unposted:
+        result.problems.append(f"mission {name} could not be posted: the API never accepted it")
+    states: dict[str, int] = defaultdict(int)
+    for mission in posted:
+        obj = final.get(mission.name)
+        if obj is None:
+            result.problems.append(f"mission {mission.name} (robot {mission.robot}) was posted but is gone")
+            continue
+        status = obj.get("status") or {}
+        state = status.get("state")
+        states[str(state)] += 1
+        if state == "COMPLETED":
+            continue
+        robot = (robots or {}).get(mission.robot)
+        robot_status = ""
+        if robot is not None:
+            rs = robot.get("status") or {}
+            robot_status = f"; robot {mission.robot} state {rs.get('state')} online {rs.get('online')}"
+        if state in TERMINAL:
+            result.problems.append(
+                f"mission {mission.name} (robot {mission.robot}) ended {state}: "
+                f"{status.get('failure_category')} {status.get('failure_reason')!r}{robot_status}"
+            )
+        else:
+            result.problems.append(
+                f"mission {mission.name} (robot {mission.robot}) still {state} {waited:.0f} s after the "
+                f"faults stopped (current_node {status.get('current_node')}, waiting_reason "
+                f"{status.get('waiting_reason')!r}){robot_status}"
+            )
+    result.notes.append(f"{len(posted)} missions posted; final states {dict(sorted(states.items()))}")
+    return result
+
+
+# --- 2. no order re-sent with different content -------------------------------------------------------
+
+
+def check_order_copies(messages: Sequence[WireMessage], origin: float | None = None) -> CheckResult:
+    """Every copy of an order (orderId, orderUpdateId) on the wire has the same content but for
+    `headerId` and `timestamp`."""
+    result = CheckResult("order re-sends identical")
+    first: dict[tuple[str, int], WireMessage] = {}
+    copies = 0
+    for message in messages:
+        if message.kind != "order" or message.data is None:
+            continue
+        key = (str(message.data.get("orderId")), int(message.data.get("orderUpdateId") or 0))
+        seen = first.get(key)
+        if seen is None:
+            first[key] = message
+            continue
+        copies += 1
+        assert seen.data is not None
+        if _without(seen.data, "headerId", "timestamp") != _without(message.data, "headerId", "timestamp"):
+            changed = sorted(
+                k
+                for k in set(seen.data) | set(message.data)
+                if k not in ("headerId", "timestamp") and seen.data.get(k) != message.data.get(k)
+            )
+            result.problems.append(
+                f"robot {message.serial}: order {key[0]} update {key[1]} re-sent with different {changed} "
+                f"(headerId {seen.data.get('headerId')} at {_at(seen.t, origin)} vs "
+                f"{message.data.get('headerId')} at {_at(message.t, origin)})"
+            )
+    result.notes.append(f"{len(first)} orders, {copies} re-sent copies compared")
+    return result
+
+
+# --- 3. no new order to a busy robot ------------------------------------------------------------------
+
+
+def check_no_order_while_busy(
+    messages: Sequence[WireMessage], blind: Sequence[Window], origin: float | None = None
+) -> CheckResult:
+    """No new orderId goes to a robot whose latest state before it (in the observer's arrival order)
+    showed it busy with another order. A state with a `blind` window (the observer away) between it and
+    the order may not be the latest, so such orders are left out, as are orders with no state of their
+    robot before them."""
+    result = CheckResult("no new order to a busy robot")
+    latest: dict[str, WireMessage] = {}
+    orders_seen: dict[str, set[str]] = defaultdict(set)
+    checked = unknown = 0
+    for message in messages:
+        if message.data is None:
+            continue
+        if message.kind == "state":
+            latest[message.serial] = message
+            continue
+        if message.kind != "order":
+            continue
+        order_id = str(message.data.get("orderId"))
+        if order_id in orders_seen[message.serial]:
+            continue  # a re-send or an update of an order the robot was sent before
+        orders_seen[message.serial].add(order_id)
+        state = latest.get(message.serial)
+        if state is None or excused(blind, state.t, message.t):
+            unknown += 1
+            continue
+        checked += 1
+        assert state.data is not None
+        if state.data.get("orderId") == order_id:
+            continue  # the robot has it already: a re-send whose first copy the observer missed
+        if busy(state.data):
+            running = [
+                f"{a.get('actionId')}={a.get('actionStatus')}"
+                for a in state.data.get("actionStates") or ()
+                if a.get("actionStatus") not in FINAL_ACTION_STATUSES
+            ]
+            result.problems.append(
+                f"robot {message.serial}: new order {order_id} (headerId {message.data.get('headerId')}, "
+                f"{_at(message.t, origin)}) while its latest state (headerId {state.data.get('headerId')}, "
+                f"{_at(state.t, origin)}) showed it busy with order {state.data.get('orderId')}: "
+                f"{len(state.data.get('nodeStates') or ())} node states, actions {running}"
+            )
+    result.notes.append(f"{checked} new orders checked, {unknown} without a known latest state")
+    return result
+
+
+# --- 4. leaves in order, never twice ------------------------------------------------------------------
+
+
+def check_leaves(
+    posted: Sequence[PostedMission],
+    final: Mapping[str, Mapping[str, Any] | None],
+    messages: Sequence[WireMessage],
+    blind: Sequence[Window],
+    origin: float | None = None,
+) -> CheckResult:
+    """Each mission's leaves are reached in order and never twice.
+
+    API: a COMPLETED mission has every node (and root) COMPLETED in node_status. Wire: in arrival order,
+    a mission's orders never go back to an earlier leaf, each leaf has a single orderId (a second attempt
+    is the leaf run again), every order belongs to a leaf of a posted mission, and a COMPLETED mission
+    during which the observer never looked away had an order on the wire for each of its leaves."""
+    result = CheckResult("leaves in order, never twice")
+    by_name = {m.name: m for m in posted}
+    wire: dict[str, list[tuple[int, str, WireMessage]]] = defaultdict(list)
+    for message in messages:
+        if message.kind != "order" or message.data is None:
+            continue
+        order_id = str(message.data.get("orderId"))
+        parsed = parse_order_id(order_id)
+        if parsed is None or parsed[0] not in by_name:
+            result.problems.append(f"robot {message.serial}: order {order_id} of no posted mission")
+            continue
+        wire[parsed[0]].append((parsed[1], order_id, message))
+    for mission in posted:
+        leaf_names = dict(mission.leaves)
+        obj = final.get(mission.name)
+        status = (obj or {}).get("status") or {}
+        if status.get("state") == "COMPLETED":
+            node_status = status.get("node_status") or {}
+            expected = set(mission.nodes or leaf_names.values()) | {"root"}
+            not_completed = sorted(
+                f"{name}={(node_status.get(name) or {}).get('state')}"
+                for name in expected
+                if (node_status.get(name) or {}).get("state") != "COMPLETED"
+            )
+            if not_completed:
+                result.problems.append(
+                    f"mission {mission.name} (robot {mission.robot}) COMPLETED with nodes {not_completed}"
+                )
+        highest = -1
+        ids_per_leaf: dict[int, list[str]] = defaultdict(list)
+        for index, order_id, message in wire.get(mission.name, ()):
+            if index not in leaf_names:
+                result.problems.append(
+                    f"mission {mission.name} (robot {mission.robot}): order {order_id} for node {index}, "
+                    f"which is not a leaf (leaves {sorted(leaf_names)})"
+                )
+                continue
+            if index < highest:
+                result.problems.append(
+                    f"mission {mission.name} (robot {mission.robot}): order {order_id} for leaf "
+                    f"{leaf_names[index]} came after an order for the later leaf n{highest} "
+                    f"({_at(message.t, origin)})"
+                )
+            highest = max(highest, index)
+            if order_id not in ids_per_leaf[index]:
+                ids_per_leaf[index].append(order_id)
+        for index, ids in sorted(ids_per_leaf.items()):
+            if len(ids) > 1:
+                result.problems.append(
+                    f"mission {mission.name} (robot {mission.robot}): leaf {leaf_names[index]} reached "
+                    f"{len(ids)} times, orders {ids}"
+                )
+        start, end = _epoch(status.get("start_timestamp")), _epoch(status.get("end_timestamp"))
+        if status.get("state") == "COMPLETED" and start is not None and end is not None:
+            if excused(blind, start, end):
+                continue
+            missing = [name for index, name in mission.leaves if index not in ids_per_leaf]
+            if missing:
+                result.problems.append(
+                    f"mission {mission.name} (robot {mission.robot}) COMPLETED, but no order was seen for "
+                    f"leaves {missing} (the observer saw all traffic from {_at(start, origin)} to "
+                    f"{_at(end, origin)})"
+                )
+    result.notes.append(f"{sum(len(v) for v in wire.values())} order messages of {len(wire)} missions")
+    return result
+
+
+# --- 5. headerIds -------------------------------------------------------------------------------------
+
+
+def check_header_ids(
+    messages: Sequence[WireMessage],
+    excuses: Sequence[Window],
+    *,
+    since: float,
+    topics: Sequence[str] = SERVER_TOPICS,
+    origin: float | None = None,
+    events: Sequence[ServiceEvent] = (),
+) -> CheckResult:
+    """Per robot and server topic, the distinct headerIds run from 0 without gaps (+1); every copy of a
+    headerId is the same message but for `timestamp`. A gap whose neighbours straddle one of `excuses`
+    (broker outages, the observer reconnecting) is not counted: those messages never reached the observer.
+    `since` is when the observer started listening, before the robots existed; `events` (the faults) only
+    add context to a problem."""
+    result = CheckResult("headerIds without gaps or reuse")
+    copies: dict[tuple[str, str], dict[int, list[WireMessage]]] = defaultdict(lambda: defaultdict(list))
+    for message in messages:
+        if message.kind not in topics or message.data is None:
+            continue
+        header_id = message.data.get("headerId")
+        if not isinstance(header_id, int):
+            result.problems.append(f"robot {message.serial} {message.kind}: no integer headerId")
+            continue
+        copies[(message.serial, message.kind)][header_id].append(message)
+    excused_gaps = 0
+    for (serial, topic), by_id in sorted(copies.items()):
+        for header_id, same in sorted(by_id.items()):
+            reference = same[0].data
+            assert reference is not None
+            for other in same[1:]:
+                assert other.data is not None
+                if _without(reference, "timestamp") != _without(other.data, "timestamp"):
+                    result.problems.append(
+                        f"robot {serial} {topic}: headerId {header_id} carried two different messages "
+                        f"({_describe(reference)} at {_at(same[0].t, origin)}, {_describe(other.data)} "
+                        f"at {_at(other.t, origin)})"
+                    )
+        previous_id, previous_t = -1, since
+        for header_id, same in sorted(by_id.items()):
+            t = same[0].t
+            if header_id > previous_id + 1:
+                window = excused(excuses, previous_t, t)
+                if window is not None:
+                    excused_gaps += 1
+                else:
+                    missing = (
+                        f"{previous_id + 1}"
+                        if header_id == previous_id + 2
+                        else f"{previous_id + 1}..{header_id - 1}"
+                    )
+                    result.problems.append(
+                        f"robot {serial} {topic}: headerIds {missing} never seen between {previous_id} "
+                        f"({_at(previous_t, origin)}) and {header_id} ({_at(t, origin)}: "
+                        f"{_describe(same[0].data)}), with no broker outage in between"
+                        + _events_between(events, previous_t, t, origin)
+                    )
+            previous_id, previous_t = header_id, t
+    result.notes.append(
+        f"{len(copies)} robot topics, {excused_gaps} gaps excused by broker outages or observer reconnects"
+    )
+    return result
+
+
+def _describe(data: Mapping[str, Any] | None) -> str:
+    if data is None:
+        return "?"
+    if "orderId" in data:
+        return f"order {data.get('orderId')} update {data.get('orderUpdateId')}"
+    actions = data.get("actions", data.get("instantActions")) or ()
+    return "instant actions " + ",".join(str(a.get("actionType")) for a in actions if isinstance(a, dict))
+
+
+# --- 6. no 5xx while PostgreSQL and Redis are up ------------------------------------------------------
+
+
+IMPAIRING = ("api", "postgres", "redis")
+
+
+def impaired_windows(
+    events: Sequence[ServiceEvent], *, grace: float, components: Sequence[str] = IMPAIRING
+) -> list[Window]:
+    """Per component, from each "down" to the next "up" plus `grace` (to the end of time if never up)."""
+    windows = []
+    down: dict[str, float] = {}
+    for event in sorted(events, key=lambda e: e.t):
+        if event.component not in components:
+            continue
+        if event.kind == "down":
+            down.setdefault(event.component, event.t)
+        elif event.kind == "up" and event.component in down:
+            windows.append(Window(down.pop(event.component), event.t + grace, event.component))
+    windows += [Window(t, float("inf"), component) for component, t in down.items()]
+    return windows
+
+
+def check_http(
+    attempts: Sequence[HttpAttempt],
+    events: Sequence[ServiceEvent],
+    *,
+    grace: float,
+    origin: float | None = None,
+) -> CheckResult:
+    """No 5xx, timeout or refused connection while the API process ran (and had been serving for `grace`
+    seconds since a restart) and PostgreSQL and Redis were up (for `grace` seconds since their restart);
+    no 4xx to a POST of the load (whose bodies are valid), except "already exists" for a retried POST."""
+    result = CheckResult("no 5xx while PostgreSQL and Redis are up")
+    windows = impaired_windows(events, grace=grace)
+    failed = excused_count = 0
+    for attempt in attempts:
+        what = f"{attempt.method} {attempt.path} ({_at(attempt.start, origin)}..{_at(attempt.end, origin)})"
+        if attempt.status is not None and 400 <= attempt.status < 500:
+            if attempt.method == "POST" and not attempt.exists_after_retry:
+                result.problems.append(f"{what} answered {attempt.status}: {attempt.body[:300]}")
+            continue
+        if attempt.status is not None and attempt.status < 500:
+            continue
+        failed += 1
+        if excused(windows, attempt.start, attempt.end) is not None:
+            excused_count += 1
+            continue
+        answer = f"answered {attempt.status}" if attempt.status is not None else f"failed: {attempt.error}"
+        result.problems.append(
+            f"{what} {answer} while the API, PostgreSQL and Redis were up: {attempt.body[:300]}"
+        )
+    result.notes.append(
+        f"{len(attempts)} requests, {failed} 5xx/errors, "
+        f"{excused_count} of them during a fault (+{grace:g} s)"
+    )
+    return result
+
+
+# --- 7. no unexpected process exit --------------------------------------------------------------------
+
+
+def check_processes(
+    exits: Sequence[ProcessExit], running_at_end: Mapping[str, bool], origin: float | None = None
+) -> CheckResult:
+    """No process of the stack exited by itself during the run, and all of them run at its end."""
+    result = CheckResult("no unexpected process exit")
+    for process in exits:
+        result.problems.append(
+            f"{process.name} exited by itself at {_at(process.t, origin)} with code {process.returncode}"
+            + (f"; its log ends: {process.tail}" if process.tail else "")
+        )
+    for name, running in sorted(running_at_end.items()):
+        if not running:
+            result.problems.append(f"{name} is not running at the end of the run")
+    result.notes.append(f"{len(running_at_end)} processes watched")
+    return result
