@@ -14,10 +14,10 @@ from django.urls import reverse
 from django.utils.html import format_html
 from django.utils.safestring import SafeString
 
-from missions.choices import MissionState, NodeKind
 from missions.engine import Node, TreeError, apply_route_updates, parse_tree
 from missions.models import Mission
 from missions.services import mission_cancel, mission_delete
+from missions.vocabulary import MissionState, NodeKind
 from robots.admin import call_service_for_each, delete_through_service
 from robots.models import Robot
 

@@ -1,39 +1,19 @@
-"""Enumerations of the missions app, spelled as in the reference API."""
+"""Django choices of the missions app, built from the vocabulary (``missions.vocabulary``).
+
+Each class has the vocabulary enum's names and values, and labels derived from the names as Django does;
+use these where Django needs choices (model fields, serializers, filters), the vocabulary elsewhere.
+"""
 
 from django.db import models
 
+from missions import vocabulary
+from missions.vocabulary import DONE_STATES
 from robots.choices import Lifecycle
 
-__all__ = ["FailureCategory", "Lifecycle", "MissionState", "NodeKind"]
+__all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionState", "NodeKind"]
 
-
-class MissionState(models.TextChoices):
-    """State of a mission and of each node of its tree."""
-
-    PENDING = "PENDING"
-    RUNNING = "RUNNING"
-    COMPLETED = "COMPLETED"
-    CANCELED = "CANCELED"
-    FAILED = "FAILED"
-
-
-DONE_STATES = frozenset({MissionState.COMPLETED, MissionState.CANCELED, MissionState.FAILED})
-
-
-class FailureCategory(models.TextChoices):
-    ROBOT_APP = "ROBOT_APP"
-    TIMEOUT = "TIMEOUT"
-    DEADLINE = "DEADLINE"
-    CANCELED = "CANCELED"
-
-
-class NodeKind(models.TextChoices):
-    """The kinds a mission tree node can have; each node has exactly one."""
-
-    SELECTOR = "selector"
-    SEQUENCE = "sequence"
-    ROUTE = "route"
-    MOVE = "move"
-    ACTION = "action"
-    NOTIFY = "notify"
-    CONSTANT = "constant"
+MissionState = models.TextChoices("MissionState", [(m.name, m.value) for m in vocabulary.MissionState])
+FailureCategory = models.TextChoices(
+    "FailureCategory", [(m.name, m.value) for m in vocabulary.FailureCategory]
+)
+NodeKind = models.TextChoices("NodeKind", [(m.name, m.value) for m in vocabulary.NodeKind])

@@ -5,7 +5,8 @@ robot's latest VDA 5050 state, `step` returns what to store and which messages t
 (`missions.services.robot_step`) holds the robot's row lock, so steps of one robot never interleave; a
 step only reads the latest state, so a duplicate or late wake-up just finds nothing to do.
 
-No Django, paho or Redis imports; states are the API's plain strings.
+No Django, paho or Redis imports: states, kinds, categories and lifecycles are the vocabulary's
+(``missions.vocabulary``), which compare equal to the API's plain strings.
 """
 
 from __future__ import annotations
@@ -15,22 +16,23 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from missions import engine
+from missions.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
 from vda5050 import orders
 from vda5050 import state as vda_state
-from vda5050.models import ActionStatus, Error, ErrorLevel, InstantActionsContent, OrderContent, State
+from vda5050.models import (
+    ActionStatus,
+    ActionType,
+    Error,
+    ErrorLevel,
+    InstantActionsContent,
+    OrderContent,
+    State,
+)
 from vda5050.topics import Topic
 
-# Robot states (robots.choices.RobotState) and lifecycles, as plain strings.
-IDLE, ON_TASK, CHARGING, TELEOP = "IDLE", "ON_TASK", "CHARGING", "TELEOP"
-ALIVE, PENDING_DELETE = "ALIVE", "PENDING_DELETE"
-# Failure categories (missions.choices.FailureCategory).
-ROBOT_APP, TIMEOUT, DEADLINE, CANCELED_CATEGORY = "ROBOT_APP", "TIMEOUT", "DEADLINE", "CANCELED"
-
-CANCEL_ORDER, START_TELEOP, STOP_TELEOP = "cancelOrder", "startTeleop", "stopTeleop"
-FACTSHEET_REQUEST = "factsheetRequest"
 PAUSE_ORDER = "pause_order"  # the reference's action that hands the robot to teleoperation
 FINAL = vda_state.FINAL_ACTION_STATUSES  # an instant action in one of these is no longer tracked
-ORDER_KINDS = frozenset({engine.ROUTE, engine.MOVE, engine.ACTION})
+ORDER_KINDS = frozenset({NodeKind.ROUTE, NodeKind.MOVE, NodeKind.ACTION})
 
 TIMED_OUT = "Mission timed out"
 DEADLINE_PASSED = "Mission deadline passed"
@@ -84,7 +86,7 @@ class MissionRecord:
 
     @property
     def done(self) -> bool:
-        return self.state in engine.DONE_STATES
+        return self.state in DONE_STATES
 
 
 @dataclass
@@ -148,9 +150,9 @@ def step(
     if mission is not None:
         mission = replace(mission)
         result.mission = mission
-        if mission.state == engine.PENDING:
+        if mission.state == MissionState.PENDING:
             _try_start(result, robot, state, mission, now)
-        if mission.state == engine.RUNNING:
+        if mission.state == MissionState.RUNNING:
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
     _send_instant_actions(result, robot, state, now, settings)
     return result
@@ -169,20 +171,20 @@ def _track_instant_actions(
         if status is None or status.value == action.status:
             continue
         action.status = status.value
-        if status == ActionStatus.FINISHED and action.action_type == START_TELEOP:
-            result.robot_state = TELEOP
-        elif status == ActionStatus.FINISHED and action.action_type == STOP_TELEOP:
-            result.robot_state = ON_TASK if _has_running_mission(result) else IDLE
+        if status == ActionStatus.FINISHED and action.action_type == ActionType.START_TELEOP:
+            result.robot_state = RobotState.TELEOP
+        elif status == ActionStatus.FINISHED and action.action_type == ActionType.STOP_TELEOP:
+            result.robot_state = RobotState.ON_TASK if _has_running_mission(result) else RobotState.IDLE
 
 
 def _track_charging(result: StepResult, state: State | None) -> None:
     if state is None:
         return
     charging = state.battery_state.charging
-    if charging and result.robot_state == IDLE:
-        result.robot_state = CHARGING
-    elif not charging and result.robot_state == CHARGING:
-        result.robot_state = IDLE
+    if charging and result.robot_state == RobotState.IDLE:
+        result.robot_state = RobotState.CHARGING
+    elif not charging and result.robot_state == RobotState.CHARGING:
+        result.robot_state = RobotState.IDLE
 
 
 def _send_instant_actions(
@@ -208,7 +210,7 @@ def _send_instant_actions(
 
 
 def _has_running_mission(result: StepResult) -> bool:
-    return result.mission is not None and result.mission.state == engine.RUNNING
+    return result.mission is not None and result.mission.state == MissionState.RUNNING
 
 
 def _pending_action(result: StepResult, action_type: str) -> ActionRecord | None:
@@ -224,11 +226,11 @@ def _cancel_of_order(result: StepResult, mission: MissionRecord) -> ActionRecord
     assert mission.order is not None
     prefix = f"{mission.order['orderId']}-cancel"
     for action in result.actions:
-        if action.action_type == CANCEL_ORDER and action.action_id.startswith(prefix):
+        if action.action_type == ActionType.CANCEL_ORDER and action.action_id.startswith(prefix):
             return action
     action = ActionRecord(
         action_id=orders.new_action_id(prefix),
-        action_type=CANCEL_ORDER,
+        action_type=ActionType.CANCEL_ORDER,
         mission=mission.name,
         status=None,
         sent_at=None,
@@ -243,34 +245,44 @@ def _cancel_of_order(result: StepResult, mission: MissionRecord) -> ActionRecord
 def _try_start(
     result: StepResult, robot: RobotView, state: State | None, mission: MissionRecord, now: datetime
 ) -> None:
-    if mission.lifecycle == PENDING_DELETE:
+    if mission.lifecycle == Lifecycle.PENDING_DELETE:
         result.delete_mission = True
         return
     if mission.needs_canceled:
-        _end(result, mission, engine.CANCELED, now, category=CANCELED_CATEGORY)
+        _end(result, mission, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
         return
     if mission.deadline is not None and now >= mission.deadline:
-        _end(result, mission, engine.FAILED, now, reason=DEADLINE_PASSED, category=DEADLINE)
+        _end(
+            result,
+            mission,
+            MissionState.FAILED,
+            now,
+            reason=DEADLINE_PASSED,
+            category=FailureCategory.DEADLINE,
+        )
         return
     reason = _why_not_start(result, robot, state)
     if reason is not None:
         mission.waiting_reason = reason
         return
     mission.waiting_reason = None
-    mission.state = engine.RUNNING
+    mission.state = MissionState.RUNNING
     mission.start_timestamp = now
-    mission.node_status = {**mission.node_status, engine.ROOT: {"state": engine.RUNNING, "error_msg": None}}
-    result.robot_state = ON_TASK
+    mission.node_status = {
+        **mission.node_status,
+        engine.ROOT: {"state": MissionState.RUNNING, "error_msg": None},
+    }
+    result.robot_state = RobotState.ON_TASK
 
 
 def _why_not_start(result: StepResult, robot: RobotView, state: State | None) -> str | None:
-    if robot.lifecycle != ALIVE:
+    if robot.lifecycle != Lifecycle.ALIVE:
         return "Robot is being deleted"
     if not robot.online or state is None:
         return "Robot is offline"
-    if result.robot_state == TELEOP:
+    if result.robot_state == RobotState.TELEOP:
         return "Robot is in teleop"
-    if _pending_action(result, CANCEL_ORDER) is not None:
+    if _pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return "Waiting for the robot to cancel its previous order"
     charge = state.battery_state.battery_charge
     if charge < robot.battery_critical_level:
@@ -302,7 +314,7 @@ def _advance(
     try:
         tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
     except engine.TreeError as exc:
-        _end(result, mission, engine.FAILED, now, reason=str(exc), category=ROBOT_APP)
+        _end(result, mission, MissionState.FAILED, now, reason=str(exc), category=FailureCategory.ROBOT_APP)
         return
     if _ended_by_time_or_owner(result, robot, state, mission, tree, now):
         return
@@ -327,18 +339,18 @@ def _ended_by_time_or_owner(
 ) -> bool:
     """Timeout, deadline and robot deletion end a mission at once and stop the robot."""
     assert mission.start_timestamp is not None
-    if robot.lifecycle == PENDING_DELETE:
-        reason, category = f"Robot {robot.name} was deleted", ROBOT_APP
+    if robot.lifecycle == Lifecycle.PENDING_DELETE:
+        reason, category = f"Robot {robot.name} was deleted", FailureCategory.ROBOT_APP
         result.delete_robot = True
     elif now - mission.start_timestamp >= timedelta(seconds=mission.timeout):
-        reason, category = TIMED_OUT, TIMEOUT
+        reason, category = TIMED_OUT, FailureCategory.TIMEOUT
     elif mission.deadline is not None and now >= mission.deadline:
-        reason, category = DEADLINE_PASSED, DEADLINE
+        reason, category = DEADLINE_PASSED, FailureCategory.DEADLINE
     else:
         return False
     if _order_active(state, mission) and not result.delete_robot:
         _cancel_of_order(result, mission)
-    _finish(result, mission, tree, engine.FAILED, now, reason=reason, category=category)
+    _finish(result, mission, tree, MissionState.FAILED, now, reason=reason, category=category)
     return True
 
 
@@ -363,7 +375,7 @@ def _follow_order(
     """Acceptance, resend, rejection, progress and errors of the current leaf's order."""
     order = OrderContent.model_validate(mission.order)
     leaf = next(node for node in tree.nodes if node.index == _order_node_index(order))
-    if mission.node_status[leaf.name]["state"] != engine.RUNNING:
+    if mission.node_status[leaf.name]["state"] != MissionState.RUNNING:
         return
     if not mission.order_accepted:
         rejection = vda_state.order_rejection(state, order.order_id, order.order_update_id)
@@ -384,7 +396,7 @@ def _follow_order(
         if not vda_state.is_idle(state):
             _cancel_of_order(result, mission)  # a robot that keeps a failed order must not block the next
         return
-    if leaf.kind == engine.ACTION:
+    if leaf.kind == NodeKind.ACTION:
         _follow_action(result, state, mission, leaf, order)
     else:
         _follow_route(state, mission, leaf, order)
@@ -423,16 +435,16 @@ def _follow_action(
     action = order.nodes[0].actions[0]
     status = vda_state.action_status(state, action.action_id)
     if status == ActionStatus.FINISHED:
-        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.COMPLETED)
-        if action.action_type == PAUSE_ORDER and result.robot_state == TELEOP:
-            result.robot_state = ON_TASK
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.COMPLETED)
+        if action.action_type == PAUSE_ORDER and result.robot_state == RobotState.TELEOP:
+            result.robot_state = RobotState.ON_TASK
     elif status == ActionStatus.FAILED:
         errors = vda_state.errors_referencing(state, action_ids=[action.action_id])
         _leaf_failed(mission, leaf, _describe(errors) if errors else ACTION_FAILURE)
-        if action.action_type == PAUSE_ORDER and result.robot_state == TELEOP:
-            result.robot_state = ON_TASK
+        if action.action_type == PAUSE_ORDER and result.robot_state == RobotState.TELEOP:
+            result.robot_state = RobotState.ON_TASK
     elif action.action_type == PAUSE_ORDER and status is not None:
-        result.robot_state = TELEOP
+        result.robot_state = RobotState.TELEOP
 
 
 def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, order: OrderContent) -> None:
@@ -441,14 +453,14 @@ def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, order
     reached = [
         node for node in waypoints if vda_state.last_node_reached(state, order.order_id, node.sequence_id)
     ]
-    if leaf.kind == engine.ROUTE:
+    if leaf.kind == NodeKind.ROUTE:
         exact = sum(
             1 for node in reached if node.node_position and not node.node_position.allowed_deviation_xy
         )
         if mission.task_status.get(leaf.name) != exact:
             mission.task_status = {**mission.task_status, leaf.name: exact}
     if vda_state.last_node_reached(state, order.order_id, last.sequence_id) and vda_state.is_idle(state):
-        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.COMPLETED)
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.COMPLETED)
 
 
 def _fatal_errors_for(state: State, order: OrderContent) -> list[Error]:
@@ -481,7 +493,7 @@ def _describe(errors: list[Error]) -> str:
 
 
 def _leaf_failed(mission: MissionRecord, leaf: engine.Node, message: str) -> None:
-    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.FAILED, message)
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.FAILED, message)
     mission.failure_reason = message
 
 
@@ -496,10 +508,10 @@ def _cancel(
 ) -> None:
     """A canceled running mission ends CANCELED once the robot has stopped its order (or had none)."""
     if not _order_active(state, mission) or _current_leaf_kind(tree, mission) not in ORDER_KINDS:
-        _finish(result, mission, tree, engine.CANCELED, now, category=CANCELED_CATEGORY)
+        _finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
         return
     if _cancel_of_order(result, mission).status in FINAL:
-        _finish(result, mission, tree, engine.CANCELED, now, category=CANCELED_CATEGORY)
+        _finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
 
 
 def _current_leaf_kind(tree: engine.Tree, mission: MissionRecord) -> str | None:
@@ -520,13 +532,13 @@ def _tick(
     mission.node_status = tick.node_status
     if tick.current_node is not None:
         mission.current_node = tick.current_node
-    if tick.mission_state != engine.RUNNING:
+    if tick.mission_state != MissionState.RUNNING:
         _end(
             result,
             mission,
             tick.mission_state,
             now,
-            category=ROBOT_APP if tick.mission_state == engine.FAILED else None,
+            category=FailureCategory.ROBOT_APP if tick.mission_state == MissionState.FAILED else None,
         )
         return
     leaf = tick.current_leaf
@@ -537,8 +549,8 @@ def _tick(
         return
     if tick.leaf_to_start is None:
         return
-    if leaf.kind == engine.NOTIFY:
-        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.RUNNING)
+    if leaf.kind == NodeKind.NOTIFY:
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
         result.notify = leaf.name
         return
     if (
@@ -548,7 +560,7 @@ def _tick(
         or not vda_state.may_receive_orders(state)
     ):
         return  # the order waits until the robot can take it
-    if _pending_action(result, CANCEL_ORDER) is not None:
+    if _pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return
     pose = vda_state.robot_telemetry(state).pose
     if pose is None:
@@ -561,7 +573,7 @@ def _tick(
     mission.order = order.model_dump(mode="json", by_alias=True, exclude_none=True)
     mission.order_sent_at = now
     mission.order_accepted = False
-    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.RUNNING)
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
     result.messages.append(Outgoing(order))
 
 
@@ -577,9 +589,9 @@ def build_order(
         "start": pose,
         "start_deviation_xy": start_deviation_xy,
     }
-    if leaf.kind == engine.ROUTE:
+    if leaf.kind == NodeKind.ROUTE:
         return orders.route_order(waypoints=[_waypoint(wp) for wp in leaf.params["waypoints"]], **common)
-    if leaf.kind == engine.MOVE:
+    if leaf.kind == NodeKind.MOVE:
         return orders.move_order(
             distance=leaf.params.get("distance"), rotation=leaf.params.get("rotation"), **common
         )
@@ -607,9 +619,12 @@ def _route_update_pending(
     tree: engine.Tree, mission: MissionRecord, leaf: engine.Node, settings: DispatchSettings
 ) -> bool:
     """The running route's order was built from waypoints that an update has since replaced."""
-    if leaf.kind != engine.ROUTE or mission.order is None or not mission.update_nodes:
+    if leaf.kind != NodeKind.ROUTE or mission.order is None or not mission.update_nodes:
         return False
-    if leaf.name not in mission.update_nodes or mission.node_status[leaf.name]["state"] != engine.RUNNING:
+    if (
+        leaf.name not in mission.update_nodes
+        or mission.node_status[leaf.name]["state"] != MissionState.RUNNING
+    ):
         return False
     sent = OrderContent.model_validate(mission.order)
     first = sent.nodes[0].node_position
@@ -629,7 +644,7 @@ def _restart_updated_leaf(
     True once the leaf is PENDING again, ready to start."""
     if _order_active(state, mission) and _cancel_of_order(result, mission).status not in FINAL:
         return False
-    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, engine.PENDING)
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.PENDING)
     mission.order = None
     mission.order_accepted = False
     return True
@@ -665,7 +680,7 @@ def _end(
     reason: str | None = None,
     category: str | None = None,
 ) -> None:
-    was_running = mission.state == engine.RUNNING
+    was_running = mission.state == MissionState.RUNNING
     mission.state = final_state
     mission.end_timestamp = now
     mission.waiting_reason = None
@@ -676,13 +691,18 @@ def _end(
     }
     if reason is not None:
         mission.failure_reason = reason
-    if final_state == engine.COMPLETED:
+    if final_state == MissionState.COMPLETED:
         mission.failure_reason = None  # no stale reason from a branch a selector recovered from
-    if final_state != engine.COMPLETED:
-        mission.failure_category = category or mission.failure_category or ROBOT_APP
-    if was_running and result.robot_state in (ON_TASK, TELEOP) and not result.switch_teleop:
-        result.robot_state = IDLE  # a pause_order's teleop ends with its mission; an API teleop does not
-    if mission.lifecycle == PENDING_DELETE:
+    if final_state != MissionState.COMPLETED:
+        mission.failure_category = category or mission.failure_category or FailureCategory.ROBOT_APP
+    if (
+        was_running
+        and result.robot_state in (RobotState.ON_TASK, RobotState.TELEOP)
+        and not result.switch_teleop
+    ):
+        # A pause_order's teleop ends with its mission; an API teleop does not.
+        result.robot_state = RobotState.IDLE
+    if mission.lifecycle == Lifecycle.PENDING_DELETE:
         result.delete_mission = True
 
 

@@ -22,7 +22,8 @@ mission after a restart.
   the mission runs, the last evaluated node once it is done. ``current_node`` is its index in
   ``mission_tree``; it can be a constant or an empty composite when that is where evaluation ended.
 
-No I/O, and no Django, paho or Redis imports: states and kinds are the API's plain strings.
+No I/O, and no Django, paho or Redis imports: states and kinds are the vocabulary's ``MissionState`` and
+``NodeKind`` (``missions.vocabulary``), which compare equal to the API's plain strings stored in JSON.
 """
 
 from __future__ import annotations
@@ -34,24 +35,13 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
+from missions.vocabulary import DONE_STATES, MissionState, NodeKind
+
 __all__ = [
-    "ACTION",
-    "CANCELED",
-    "COMPLETED",
     "COMPOSITE_KINDS",
-    "CONSTANT",
-    "DONE_STATES",
-    "FAILED",
     "KINDS",
     "LEAF_KINDS",
-    "MOVE",
-    "NOTIFY",
-    "PENDING",
     "ROOT",
-    "ROUTE",
-    "RUNNING",
-    "SELECTOR",
-    "SEQUENCE",
     "STATES",
     "Node",
     "TickResult",
@@ -65,27 +55,12 @@ __all__ = [
     "tick",
 ]
 
-# Mission and node states, spelled as in the API (mirrors missions.choices.MissionState).
-PENDING = "PENDING"
-RUNNING = "RUNNING"
-COMPLETED = "COMPLETED"
-CANCELED = "CANCELED"
-FAILED = "FAILED"
-STATES = frozenset({PENDING, RUNNING, COMPLETED, CANCELED, FAILED})
-DONE_STATES = frozenset({COMPLETED, CANCELED, FAILED})
-
-# Node kinds, spelled as the API's node keys (mirrors missions.choices.NodeKind).
-SELECTOR = "selector"
-SEQUENCE = "sequence"
-ROUTE = "route"
-MOVE = "move"
-ACTION = "action"
-NOTIFY = "notify"
-CONSTANT = "constant"
-KINDS = (SELECTOR, SEQUENCE, ROUTE, MOVE, ACTION, NOTIFY, CONSTANT)
-COMPOSITE_KINDS = frozenset({SELECTOR, SEQUENCE})
+STATES = frozenset(MissionState)
+# Every node kind, as plain strings in the vocabulary's order (error messages list them).
+KINDS = tuple(kind.value for kind in NodeKind)
+COMPOSITE_KINDS = frozenset({NodeKind.SELECTOR, NodeKind.SEQUENCE})
 # Leaves the caller executes (an order for the robot, or the notify call); a constant resolves itself.
-LEAF_KINDS = frozenset({ROUTE, MOVE, ACTION, NOTIFY})
+LEAF_KINDS = frozenset({NodeKind.ROUTE, NodeKind.MOVE, NodeKind.ACTION, NodeKind.NOTIFY})
 
 ROOT = "root"
 
@@ -95,19 +70,19 @@ class TreeError(ValueError):
 
 
 class _Outcome(enum.Enum):
-    """py_trees' status of a ticked node."""
+    """py_trees' status of a ticked node; its value is the state it stores."""
 
-    RUNNING = RUNNING
-    SUCCESS = COMPLETED
-    FAILURE = FAILED
+    RUNNING = MissionState.RUNNING
+    SUCCESS = MissionState.COMPLETED
+    FAILURE = MissionState.FAILED
 
 
 _LEAF_OUTCOMES = {
-    PENDING: _Outcome.RUNNING,  # not acknowledged by the robot yet, or not started: still running
-    RUNNING: _Outcome.RUNNING,
-    COMPLETED: _Outcome.SUCCESS,
-    FAILED: _Outcome.FAILURE,
-    CANCELED: _Outcome.FAILURE,
+    MissionState.PENDING: _Outcome.RUNNING,  # not acknowledged by the robot yet, or not started: running
+    MissionState.RUNNING: _Outcome.RUNNING,
+    MissionState.COMPLETED: _Outcome.SUCCESS,
+    MissionState.FAILED: _Outcome.FAILURE,
+    MissionState.CANCELED: _Outcome.FAILURE,
 }
 
 
@@ -160,7 +135,7 @@ class TickResult:
     def leaf_to_start(self) -> Node | None:
         """The current leaf if it still has to be started: the caller sets it RUNNING and executes it."""
         leaf = self.current_leaf
-        if leaf is not None and self.node_status[leaf.name]["state"] == PENDING:
+        if leaf is not None and self.node_status[leaf.name]["state"] == MissionState.PENDING:
             return leaf
         return None
 
@@ -173,7 +148,7 @@ def parse_tree(mission_tree: list[dict[str, Any]]) -> Tree:
     """
     nodes: list[Node] = []
     children: dict[str, list[str]] = {ROOT: []}
-    kinds: dict[str, str] = {ROOT: SEQUENCE}
+    kinds: dict[str, str] = {ROOT: NodeKind.SEQUENCE}
     for index, raw in enumerate(mission_tree):
         if not isinstance(raw, Mapping):
             raise TreeError(f"MissionNode {index} must be an object, not {type(raw).__name__}")
@@ -200,7 +175,7 @@ def parse_tree(mission_tree: list[dict[str, Any]]) -> Tree:
         params = raw[kind]
         if not isinstance(params, Mapping):
             raise TreeError(f"MissionNode {name}: {kind} must be an object")
-        if kind == CONSTANT and not isinstance(params.get("success", True), bool):
+        if kind == NodeKind.CONSTANT and not isinstance(params.get("success", True), bool):
             raise TreeError(f"MissionNode {name}: constant success must be true or false")
         params = copy.deepcopy(dict(params))
         nodes.append(Node(name=name, parent=parent, kind=kind, params=params, index=index))
@@ -208,14 +183,23 @@ def parse_tree(mission_tree: list[dict[str, Any]]) -> Tree:
         children[name] = []
         children[parent].append(name)
     return Tree(
-        root=Node(name=ROOT, parent="", kind=SEQUENCE, params={}, index=None, children=tuple(children[ROOT])),
+        root=Node(
+            name=ROOT,
+            parent="",
+            kind=NodeKind.SEQUENCE,
+            params={},
+            index=None,
+            children=tuple(children[ROOT]),
+        ),
         nodes=tuple(replace(node, children=tuple(children[node.name])) for node in nodes),
     )
 
 
 def initial_node_status(tree: Tree) -> dict[str, dict[str, Any]]:
     """Node states of a mission that has not started: root and every node PENDING, no error message."""
-    return {node.name: {"state": PENDING, "error_msg": None} for node in (tree.root, *tree.nodes)}
+    return {
+        node.name: {"state": MissionState.PENDING, "error_msg": None} for node in (tree.root, *tree.nodes)
+    }
 
 
 def tick(tree: Tree, node_status: Mapping[str, Mapping[str, Any]]) -> TickResult:
@@ -247,13 +231,15 @@ def finish(
     every other node keeps its stored state. A leaf that was never started stays PENDING. A mission that
     has already ended is returned unchanged, as ``tick`` does.
     """
-    if state not in (CANCELED, FAILED):
-        raise TreeError(f"A mission can only be finished as {CANCELED} or {FAILED}, not {state}")
+    if state not in (MissionState.CANCELED, MissionState.FAILED):
+        raise TreeError(
+            f"A mission can only be finished as {MissionState.CANCELED} or {MissionState.FAILED}, not {state}"
+        )
     status = _copy_status(tree, node_status)
     if status[ROOT]["state"] in DONE_STATES:
         return tick(tree, status)
     outcome, tip = _evaluate(tree, tree.root, _copy_status(tree, status))  # only to find the tip
-    if outcome is _Outcome.RUNNING and status[tip.name]["state"] == RUNNING:
+    if outcome is _Outcome.RUNNING and status[tip.name]["state"] == MissionState.RUNNING:
         status = set_leaf_state(status, tip.name, state, error_msg)
     status[ROOT]["state"] = state
     return TickResult(node_status=status, mission_state=state, current_node=tip.index, current_leaf=None)
@@ -280,7 +266,7 @@ def apply_route_updates(tree: Tree, update_nodes: Mapping[str, Mapping[str, Any]
         return tree
     for name in update_nodes:
         node = tree.node(name)
-        if node.kind != ROUTE:
+        if node.kind != NodeKind.ROUTE:
             raise TreeError(f"Only route nodes can be updated, but {name} is a {node.kind} node")
     nodes = tuple(
         replace(node, params=copy.deepcopy(dict(update_nodes[node.name])))
@@ -295,7 +281,7 @@ def _copy_status(tree: Tree, node_status: Mapping[str, Mapping[str, Any]]) -> di
     """A deep enough copy to write into, with a PENDING entry for any node the stored status lacks."""
     status = initial_node_status(tree)
     for name, entry in node_status.items():
-        status[name] = {"state": PENDING, "error_msg": None, **entry}
+        status[name] = {"state": MissionState.PENDING, "error_msg": None, **entry}
     return status
 
 
@@ -306,7 +292,7 @@ def _evaluate(tree: Tree, node: Node, status: dict[str, dict[str, Any]]) -> tupl
         if state not in _LEAF_OUTCOMES:
             raise TreeError(f"Node {node.name} has unknown state {state}")
         return _LEAF_OUTCOMES[state], node
-    if node.kind == CONSTANT:
+    if node.kind == NodeKind.CONSTANT:
         outcome, tip = (_Outcome.SUCCESS if node.params.get("success", True) else _Outcome.FAILURE), node
     else:
         outcome, tip = _evaluate_composite(tree, node, status)
@@ -320,7 +306,7 @@ def _evaluate_composite(tree: Tree, node: Node, status: dict[str, dict[str, Any]
     Running off the end leaves the last child's outcome (SUCCESS for a sequence, FAILURE for a selector)
     and its tip; with no children a sequence succeeds and a selector fails, and the tip is the node itself.
     """
-    passes = _Outcome.SUCCESS if node.kind == SEQUENCE else _Outcome.FAILURE
+    passes = _Outcome.SUCCESS if node.kind == NodeKind.SEQUENCE else _Outcome.FAILURE
     outcome, tip = passes, node
     for child_name in node.children:
         outcome, tip = _evaluate(tree, tree.node(child_name), status)

@@ -11,9 +11,9 @@ from django.utils import timezone
 
 from fleet.api import QueryValidationError, object_get
 from missions import dispatch
-from missions.choices import MissionState
 from missions.filters import MissionFilter
 from missions.models import Mission
+from missions.vocabulary import MissionState
 from robots.models import InstantAction, Robot
 from workers import livestate
 

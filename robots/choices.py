@@ -1,20 +1,15 @@
-"""Enumerations of the robots app, spelled as in the reference API."""
+"""Enumerations of the robots app, spelled as in the reference API.
+
+``Lifecycle`` and ``RobotState`` are the vocabulary's (``missions.vocabulary``) as Django choices: the
+vocabulary enum's names and values, and labels derived from the names as Django does.
+"""
 
 from django.db import models
 
+from missions import vocabulary
 
-class Lifecycle(models.TextChoices):
-    ALIVE = "ALIVE"
-    PENDING_DELETE = "PENDING_DELETE"
-    DELETED = "DELETED"
-
-
-class RobotState(models.TextChoices):
-    IDLE = "IDLE"
-    ON_TASK = "ON_TASK"
-    CHARGING = "CHARGING"
-    MAP_DEPLOYMENT = "MAP_DEPLOYMENT"
-    TELEOP = "TELEOP"
+Lifecycle = models.TextChoices("Lifecycle", [(m.name, m.value) for m in vocabulary.Lifecycle])
+RobotState = models.TextChoices("RobotState", [(m.name, m.value) for m in vocabulary.RobotState])
 
 
 class TeleopAction(models.TextChoices):

@@ -18,8 +18,9 @@ from fleet.api import (
     object_name_validator,
     validate_positive,
 )
-from missions.choices import FailureCategory, Lifecycle, MissionState, NodeKind
+from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.models import Mission
+from missions.vocabulary import NodeKind
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
 DEFAULT_NOTIFY_TIMEOUT = 30

@@ -21,11 +21,11 @@ from missions.api.serializers import (
     RouteUpdatesField,
     node_description,
 )
-from missions.choices import NodeKind
 from missions.filters import MissionFilter
 from missions.models import Mission
 from missions.selectors import mission_get, mission_list
 from missions.services import mission_cancel, mission_create, mission_delete, mission_update_routes
+from missions.vocabulary import NodeKind
 
 
 def _waypoint(x: float, y: float) -> dict:

@@ -14,12 +14,14 @@ from typing import Any
 import orjson
 
 from missions import dispatch, engine
+from missions.vocabulary import Lifecycle, MissionState, RobotState
 from tests.vda5050.schemas import VERSIONS, validate_message
 from vda5050.codec import encode, header_for, utc_timestamp
 from vda5050.models import (
     Action,
     ActionState,
     ActionStatus,
+    ActionType,
     AgvPosition,
     BatteryState,
     EdgeState,
@@ -90,8 +92,8 @@ def mission(*tree: dict[str, Any], **fields: Any) -> dispatch.MissionRecord:
         "deadline": None,
         "needs_canceled": False,
         "update_nodes": None,
-        "lifecycle": dispatch.ALIVE,
-        "state": engine.PENDING,
+        "lifecycle": Lifecycle.ALIVE,
+        "state": MissionState.PENDING,
         "current_node": 0,
         "node_status": engine.initial_node_status(engine.parse_tree(mission_tree)),
         "task_status": {},
@@ -111,8 +113,8 @@ def mission(*tree: dict[str, Any], **fields: Any) -> dispatch.MissionRecord:
 def robot_view(**fields: Any) -> dispatch.RobotView:
     defaults: dict[str, Any] = {
         "name": ROBOT,
-        "lifecycle": dispatch.ALIVE,
-        "state": dispatch.IDLE,
+        "lifecycle": Lifecycle.ALIVE,
+        "state": RobotState.IDLE,
         "online": True,
         "battery_critical_level": 10.0,
     }
@@ -334,9 +336,9 @@ def started(*tree: dict[str, Any], state: State = IDLE_STATE, **fields: Any) -> 
     """A dispatcher whose mission of `tree` has just started and sent its first order."""
     dispatcher = Dispatcher(mission(*tree, **fields))
     dispatcher.step(state)
-    assert dispatcher.mission is not None and dispatcher.mission.state == engine.RUNNING
+    assert dispatcher.mission is not None and dispatcher.mission.state == MissionState.RUNNING
     return dispatcher
 
 
 def cancel_actions(actions: Iterable[dispatch.ActionRecord]) -> list[dispatch.ActionRecord]:
-    return [a for a in actions if a.action_type == dispatch.CANCEL_ORDER]
+    return [a for a in actions if a.action_type == ActionType.CANCEL_ORDER]

@@ -4,7 +4,7 @@ from datetime import timedelta
 
 import pytest
 
-from missions import dispatch, engine
+from missions.vocabulary import MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,
@@ -18,19 +18,19 @@ from tests.dispatch.builders import (
     robot_view,
     started,
 )
-from vda5050.models import ActionStatus, BlockingType, OperatingMode
+from vda5050.models import ActionStatus, ActionType, BlockingType, OperatingMode
 
 RESEND = SETTINGS.instant_action_resend
 
 
 def test_a_new_instant_action_is_sent_once_and_marked_sent() -> None:
-    factsheet = instant_action(dispatch.FACTSHEET_REQUEST)
+    factsheet = instant_action(ActionType.FACTSHEET_REQUEST)
 
     result = checked_step(state=IDLE_STATE, mission=None, actions=[factsheet])
 
     [sent] = instant_actions_sent(result)
     assert (sent.action_type, sent.action_id, sent.blocking_type) == (
-        dispatch.FACTSHEET_REQUEST,
+        ActionType.FACTSHEET_REQUEST,
         factsheet.action_id,
         BlockingType.NONE,
     )
@@ -39,25 +39,25 @@ def test_a_new_instant_action_is_sent_once_and_marked_sent() -> None:
 
 
 def test_new_instant_actions_are_sent_together_in_one_message() -> None:
-    actions = [instant_action(dispatch.FACTSHEET_REQUEST), instant_action(dispatch.START_TELEOP)]
+    actions = [instant_action(ActionType.FACTSHEET_REQUEST), instant_action(ActionType.START_TELEOP)]
 
     result = checked_step(state=IDLE_STATE, mission=None, actions=actions)
 
     assert len(result.messages) == 1
     assert [a.action_type for a in instant_actions_sent(result)] == [
-        dispatch.FACTSHEET_REQUEST,
-        dispatch.START_TELEOP,
+        ActionType.FACTSHEET_REQUEST,
+        ActionType.START_TELEOP,
     ]
 
 
 def test_a_new_instant_action_is_sent_even_before_the_robot_reports_a_state() -> None:
-    result = checked_step(state=None, mission=None, actions=[instant_action(dispatch.FACTSHEET_REQUEST)])
+    result = checked_step(state=None, mission=None, actions=[instant_action(ActionType.FACTSHEET_REQUEST)])
 
     assert len(instant_actions_sent(result)) == 1
 
 
 def test_an_unacknowledged_instant_action_is_not_resent_before_the_resend_period() -> None:
-    sent = instant_action(dispatch.START_TELEOP, sent_at=NOW)
+    sent = instant_action(ActionType.START_TELEOP, sent_at=NOW)
 
     result = checked_step(
         state=IDLE_STATE, mission=None, actions=[sent], now=NOW + RESEND - timedelta(milliseconds=1)
@@ -68,7 +68,7 @@ def test_an_unacknowledged_instant_action_is_not_resent_before_the_resend_period
 
 
 def test_an_unacknowledged_instant_action_is_resent_with_the_same_id_after_the_resend_period() -> None:
-    sent = instant_action(dispatch.START_TELEOP, sent_at=NOW)
+    sent = instant_action(ActionType.START_TELEOP, sent_at=NOW)
 
     result = checked_step(state=IDLE_STATE, mission=None, actions=[sent], now=NOW + RESEND)
 
@@ -78,8 +78,8 @@ def test_an_unacknowledged_instant_action_is_resent_with_the_same_id_after_the_r
 
 
 def test_only_the_due_instant_actions_are_resent() -> None:
-    old = instant_action(dispatch.START_TELEOP, "old", sent_at=NOW - RESEND)
-    recent = instant_action(dispatch.FACTSHEET_REQUEST, "recent", sent_at=NOW)
+    old = instant_action(ActionType.START_TELEOP, "old", sent_at=NOW - RESEND)
+    recent = instant_action(ActionType.FACTSHEET_REQUEST, "recent", sent_at=NOW)
 
     result = checked_step(state=IDLE_STATE, mission=None, actions=[old, recent])
 
@@ -88,7 +88,7 @@ def test_only_the_due_instant_actions_are_resent() -> None:
 
 @pytest.mark.parametrize("status", [ActionStatus.WAITING, ActionStatus.RUNNING, ActionStatus.PAUSED])
 def test_an_instant_action_the_robot_reports_is_not_resent(status: ActionStatus) -> None:
-    sent = instant_action(dispatch.START_TELEOP, sent_at=NOW - RESEND)
+    sent = instant_action(ActionType.START_TELEOP, sent_at=NOW - RESEND)
 
     result = checked_step(
         state=robot_state(action_states=[(sent.action_id, status)]), mission=None, actions=[sent]
@@ -100,7 +100,7 @@ def test_an_instant_action_the_robot_reports_is_not_resent(status: ActionStatus)
 
 @pytest.mark.parametrize("sent_at", [None, NOW - timedelta(hours=1)])
 def test_no_instant_action_is_sent_to_an_offline_robot(sent_at) -> None:
-    action = instant_action(dispatch.CANCEL_ORDER, sent_at=sent_at)
+    action = instant_action(ActionType.CANCEL_ORDER, sent_at=sent_at)
 
     result = checked_step(state=IDLE_STATE, mission=None, actions=[action], robot=robot_view(online=False))
 
@@ -111,13 +111,13 @@ def test_no_instant_action_is_sent_to_an_offline_robot(sent_at) -> None:
 @pytest.mark.parametrize(
     ("action_type", "status", "before", "after"),
     [
-        (dispatch.START_TELEOP, ActionStatus.FINISHED, dispatch.IDLE, dispatch.TELEOP),
-        (dispatch.START_TELEOP, ActionStatus.FINISHED, dispatch.ON_TASK, dispatch.TELEOP),
-        (dispatch.START_TELEOP, ActionStatus.RUNNING, dispatch.IDLE, dispatch.IDLE),
-        (dispatch.START_TELEOP, ActionStatus.FAILED, dispatch.IDLE, dispatch.IDLE),
-        (dispatch.STOP_TELEOP, ActionStatus.FINISHED, dispatch.TELEOP, dispatch.IDLE),
-        (dispatch.STOP_TELEOP, ActionStatus.FAILED, dispatch.TELEOP, dispatch.TELEOP),
-        (dispatch.FACTSHEET_REQUEST, ActionStatus.FINISHED, dispatch.IDLE, dispatch.IDLE),
+        (ActionType.START_TELEOP, ActionStatus.FINISHED, RobotState.IDLE, RobotState.TELEOP),
+        (ActionType.START_TELEOP, ActionStatus.FINISHED, RobotState.ON_TASK, RobotState.TELEOP),
+        (ActionType.START_TELEOP, ActionStatus.RUNNING, RobotState.IDLE, RobotState.IDLE),
+        (ActionType.START_TELEOP, ActionStatus.FAILED, RobotState.IDLE, RobotState.IDLE),
+        (ActionType.STOP_TELEOP, ActionStatus.FINISHED, RobotState.TELEOP, RobotState.IDLE),
+        (ActionType.STOP_TELEOP, ActionStatus.FAILED, RobotState.TELEOP, RobotState.TELEOP),
+        (ActionType.FACTSHEET_REQUEST, ActionStatus.FINISHED, RobotState.IDLE, RobotState.IDLE),
     ],
 )
 def test_finished_teleop_actions_switch_the_robot_state(
@@ -139,19 +139,19 @@ def test_finished_teleop_actions_switch_the_robot_state(
 
 def test_stop_teleop_returns_to_on_task_while_a_mission_runs() -> None:
     dispatcher = started()
-    dispatcher.robot = robot_view(state=dispatch.TELEOP)
-    dispatcher.actions = [instant_action(dispatch.STOP_TELEOP, sent_at=dispatcher.now)]
+    dispatcher.robot = robot_view(state=RobotState.TELEOP)
+    dispatcher.actions = [instant_action(ActionType.STOP_TELEOP, sent_at=dispatcher.now)]
 
     result = dispatcher.step(
         robot_state(action_states=[(dispatcher.actions[0].action_id, ActionStatus.FINISHED)]), after=1.0
     )
 
-    assert result.robot_state == dispatch.ON_TASK
+    assert result.robot_state == RobotState.ON_TASK
     assert dispatcher.actions == []  # final: the caller stops tracking it
 
 
 def test_a_robot_entering_teleop_holds_a_queued_mission_back() -> None:
-    sent = instant_action(dispatch.START_TELEOP, sent_at=NOW)
+    sent = instant_action(ActionType.START_TELEOP, sent_at=NOW)
 
     result = checked_step(
         state=robot_state(action_states=[(sent.action_id, ActionStatus.FINISHED)]),
@@ -159,19 +159,19 @@ def test_a_robot_entering_teleop_holds_a_queued_mission_back() -> None:
         actions=[sent],
     )
 
-    assert (result.robot_state, result.mission.state) == (dispatch.TELEOP, engine.PENDING)
+    assert (result.robot_state, result.mission.state) == (RobotState.TELEOP, MissionState.PENDING)
     assert result.mission.waiting_reason == "Robot is in teleop"
 
 
 @pytest.mark.parametrize(
     ("before", "charging", "after"),
     [
-        (dispatch.IDLE, True, dispatch.CHARGING),
-        (dispatch.CHARGING, True, dispatch.CHARGING),
-        (dispatch.CHARGING, False, dispatch.IDLE),
-        (dispatch.IDLE, False, dispatch.IDLE),
-        (dispatch.ON_TASK, True, dispatch.ON_TASK),
-        (dispatch.TELEOP, True, dispatch.TELEOP),
+        (RobotState.IDLE, True, RobotState.CHARGING),
+        (RobotState.CHARGING, True, RobotState.CHARGING),
+        (RobotState.CHARGING, False, RobotState.IDLE),
+        (RobotState.IDLE, False, RobotState.IDLE),
+        (RobotState.ON_TASK, True, RobotState.ON_TASK),
+        (RobotState.TELEOP, True, RobotState.TELEOP),
     ],
 )
 def test_charging_follows_the_battery_state_of_a_robot_without_work(
@@ -183,22 +183,22 @@ def test_charging_follows_the_battery_state_of_a_robot_without_work(
 
 
 def test_charging_state_is_kept_when_no_state_is_known() -> None:
-    result = checked_step(state=None, mission=None, robot=robot_view(state=dispatch.CHARGING))
+    result = checked_step(state=None, mission=None, robot=robot_view(state=RobotState.CHARGING))
 
-    assert result.robot_state == dispatch.CHARGING
+    assert result.robot_state == RobotState.CHARGING
 
 
 def test_a_charging_robot_takes_a_mission_and_goes_back_to_charging_after_it() -> None:
     dispatcher = started(state=robot_state(charging=True))
-    assert dispatcher.results[0].robot_state == dispatch.ON_TASK
+    assert dispatcher.results[0].robot_state == RobotState.ON_TASK
 
     at_the_end = finished(dispatcher.order, charging=True)
     done = dispatcher.step(at_the_end, after=1.0)
-    assert (dispatcher.mission.state, done.robot_state) == (engine.COMPLETED, dispatch.IDLE)
+    assert (dispatcher.mission.state, done.robot_state) == (MissionState.COMPLETED, RobotState.IDLE)
 
     dispatcher.mission = None  # the caller's queue is empty
     after = dispatcher.step(at_the_end, after=1.0)
-    assert after.robot_state == dispatch.CHARGING
+    assert after.robot_state == RobotState.CHARGING
 
 
 @pytest.mark.parametrize("mode", [OperatingMode.MANUAL, OperatingMode.SERVICE, OperatingMode.TEACHIN])
@@ -206,7 +206,7 @@ def test_no_instant_action_is_sent_while_the_master_is_not_in_control(mode: Oper
     result = checked_step(
         state=robot_state(operating_mode=mode),
         mission=None,
-        actions=[instant_action(dispatch.FACTSHEET_REQUEST)],
+        actions=[instant_action(ActionType.FACTSHEET_REQUEST)],
     )
 
     assert result.messages == []

@@ -6,6 +6,7 @@ from datetime import timedelta
 import pytest
 
 from missions import dispatch, engine
+from missions.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,
@@ -21,7 +22,7 @@ from tests.dispatch.builders import (
     route,
     started,
 )
-from vda5050.models import ActionStatus
+from vda5050.models import ActionStatus, ActionType
 from vda5050.orders import order_key
 
 # --- notify ----------------------------------------------------------------------------------------------
@@ -34,11 +35,11 @@ def test_a_notify_leaf_is_set_running_and_handed_to_the_caller() -> None:
 
     assert (result.notify, dispatcher.node("n"), dispatcher.node("r")) == (
         "n",
-        engine.RUNNING,
-        engine.PENDING,
+        MissionState.RUNNING,
+        MissionState.PENDING,
     )
     assert (orders_sent(result), dispatcher.mission.order) == ([], None)
-    assert result.robot_state == dispatch.ON_TASK
+    assert result.robot_state == RobotState.ON_TASK
 
 
 def test_a_running_notify_is_not_handed_over_twice() -> None:
@@ -54,29 +55,29 @@ def test_a_notify_completed_by_the_caller_starts_the_next_leafs_order() -> None:
     dispatcher = Dispatcher(mission(notify("n"), route("r")))
     dispatcher.step(IDLE_STATE)
     dispatcher.mission.node_status = engine.set_leaf_state(
-        dispatcher.mission.node_status, "n", engine.COMPLETED
+        dispatcher.mission.node_status, "n", MissionState.COMPLETED
     )
 
     result = dispatcher.step(IDLE_STATE, after=1.0)
 
     assert [order.order_id for order in orders_sent(result)] == ["m1-n1-r0"]
-    assert (dispatcher.node("r"), dispatcher.mission.current_node) == (engine.RUNNING, 1)
+    assert (dispatcher.node("r"), dispatcher.mission.current_node) == (MissionState.RUNNING, 1)
 
 
 def test_a_notify_failed_by_the_caller_fails_the_mission() -> None:
     dispatcher = Dispatcher(mission(notify("n"), route("r")))
     dispatcher.step(IDLE_STATE)
     dispatcher.mission.node_status = engine.set_leaf_state(
-        dispatcher.mission.node_status, "n", engine.FAILED, "Notify got HTTP 404"
+        dispatcher.mission.node_status, "n", MissionState.FAILED, "Notify got HTTP 404"
     )
 
     result = dispatcher.step(IDLE_STATE, after=1.0)
 
     assert (dispatcher.mission.state, dispatcher.mission.failure_category) == (
-        engine.FAILED,
-        dispatch.ROBOT_APP,
+        MissionState.FAILED,
+        FailureCategory.ROBOT_APP,
     )
-    assert (result.messages, result.robot_state) == ([], dispatch.IDLE)
+    assert (result.messages, result.robot_state) == ([], RobotState.IDLE)
 
 
 # --- timeout and deadline --------------------------------------------------------------------------------
@@ -87,7 +88,7 @@ def test_a_mission_is_not_timed_out_just_before_its_timeout() -> None:
 
     dispatcher.step(on_order(dispatcher.order, 0), after=9.999)
 
-    assert dispatcher.mission.state == engine.RUNNING
+    assert dispatcher.mission.state == MissionState.RUNNING
 
 
 def test_a_timed_out_mission_fails_and_cancels_the_robots_active_order() -> None:
@@ -98,16 +99,16 @@ def test_a_timed_out_mission_fails_and_cancels_the_robots_active_order() -> None
 
     ended = dispatcher.mission
     assert (ended.state, ended.failure_reason, ended.failure_category) == (
-        engine.FAILED,
+        MissionState.FAILED,
         dispatch.TIMED_OUT,
-        dispatch.TIMEOUT,
+        FailureCategory.TIMEOUT,
     )
-    assert ended.node_status["r"] == {"state": engine.FAILED, "error_msg": dispatch.TIMED_OUT}
+    assert ended.node_status["r"] == {"state": MissionState.FAILED, "error_msg": dispatch.TIMED_OUT}
     assert (ended.end_timestamp, ended.order) == (NOW + timedelta(seconds=10), None)
     [cancel] = cancel_actions(result.actions)
     assert (cancel.mission, cancel.action_id.startswith(f"{order.order_id}-cancel")) == ("m1", True)
     assert [a.action_id for a in instant_actions_sent(result)] == [cancel.action_id]
-    assert (orders_sent(result), result.robot_state) == ([], dispatch.IDLE)
+    assert (orders_sent(result), result.robot_state) == ([], RobotState.IDLE)
 
 
 def test_a_timed_out_mission_whose_order_may_still_arrive_cancels_it() -> None:
@@ -115,7 +116,7 @@ def test_a_timed_out_mission_whose_order_may_still_arrive_cancels_it() -> None:
 
     result = dispatcher.step(IDLE_STATE, after=10.0)
 
-    assert dispatcher.mission.state == engine.FAILED
+    assert dispatcher.mission.state == MissionState.FAILED
     assert len(cancel_actions(result.actions)) == 1
 
 
@@ -124,7 +125,7 @@ def test_a_timed_out_mission_with_the_robot_idle_on_its_order_sends_no_cancel() 
 
     result = dispatcher.step(on_order(dispatcher.order, 0), after=10.0)
 
-    assert dispatcher.mission.state == engine.FAILED
+    assert dispatcher.mission.state == MissionState.FAILED
     assert (result.actions, result.messages) == ([], [])
 
 
@@ -135,10 +136,10 @@ def test_a_timed_out_mission_on_a_notify_sends_no_cancel() -> None:
     result = dispatcher.step(IDLE_STATE, after=10.0)
 
     assert (dispatcher.mission.state, dispatcher.mission.failure_category) == (
-        engine.FAILED,
-        dispatch.TIMEOUT,
+        MissionState.FAILED,
+        FailureCategory.TIMEOUT,
     )
-    assert dispatcher.mission.node_status["n"]["state"] == engine.FAILED
+    assert dispatcher.mission.node_status["n"]["state"] == MissionState.FAILED
     assert (result.actions, result.messages) == ([], [])
 
 
@@ -148,7 +149,7 @@ def test_a_mission_times_out_while_the_robot_is_offline_without_sending_anything
 
     result = dispatcher.step(None, after=11.0)
 
-    assert dispatcher.mission.state == engine.FAILED
+    assert dispatcher.mission.state == MissionState.FAILED
     assert result.messages == []
     assert len(cancel_actions(result.actions)) == 1  # kept, sent once the robot is back
 
@@ -160,12 +161,12 @@ def test_a_running_mission_past_its_deadline_fails_with_deadline() -> None:
 
     ended = dispatcher.mission
     assert (ended.state, ended.failure_reason, ended.failure_category) == (
-        engine.FAILED,
+        MissionState.FAILED,
         dispatch.DEADLINE_PASSED,
-        dispatch.DEADLINE,
+        FailureCategory.DEADLINE,
     )
     assert len(cancel_actions(result.actions)) == 1
-    assert result.robot_state == dispatch.IDLE
+    assert result.robot_state == RobotState.IDLE
 
 
 # --- cancel and delete -----------------------------------------------------------------------------------
@@ -185,9 +186,9 @@ def test_canceling_a_running_order_requests_cancel_order_and_waits_for_it() -> N
     [cancel] = cancel_actions(result.actions)
     assert (cancel.mission, cancel.sent_at, cancel.send_count) == ("m1", dispatcher.now, 1)
     assert [(a.action_type, a.action_id) for a in instant_actions_sent(result)] == [
-        (dispatch.CANCEL_ORDER, cancel.action_id)
+        (ActionType.CANCEL_ORDER, cancel.action_id)
     ]
-    assert (dispatcher.mission.state, dispatcher.node("r")) == (engine.RUNNING, engine.RUNNING)
+    assert (dispatcher.mission.state, dispatcher.node("r")) == (MissionState.RUNNING, MissionState.RUNNING)
     assert orders_sent(result) == []
 
 
@@ -207,7 +208,7 @@ def test_a_final_cancel_order_ends_the_mission_canceled(status: ActionStatus) ->
     [cancel] = cancel_actions(dispatcher.step(on_order(order, 0), after=1.0).actions)
 
     result = dispatcher.step(
-        on_order(order, 0, extra_actions=[(cancel.action_id, status, dispatch.CANCEL_ORDER)]).model_copy(
+        on_order(order, 0, extra_actions=[(cancel.action_id, status, ActionType.CANCEL_ORDER)]).model_copy(
             update={"node_states": [], "edge_states": []}
         ),
         after=1.0,
@@ -215,16 +216,16 @@ def test_a_final_cancel_order_ends_the_mission_canceled(status: ActionStatus) ->
 
     ended = dispatcher.mission
     assert (ended.state, ended.failure_category, ended.end_timestamp) == (
-        engine.CANCELED,
-        dispatch.CANCELED_CATEGORY,
+        MissionState.CANCELED,
+        FailureCategory.CANCELED,
         dispatcher.now,
     )
     assert (dispatcher.node("r1"), dispatcher.node("r2"), ended.node_status["root"]["state"]) == (
-        engine.CANCELED,
-        engine.PENDING,
-        engine.CANCELED,
+        MissionState.CANCELED,
+        MissionState.PENDING,
+        MissionState.CANCELED,
     )
-    assert (result.messages, result.robot_state, result.delete_mission) == ([], dispatch.IDLE, False)
+    assert (result.messages, result.robot_state, result.delete_mission) == ([], RobotState.IDLE, False)
 
 
 def test_canceling_while_a_notify_runs_ends_the_mission_at_once() -> None:
@@ -234,8 +235,8 @@ def test_canceling_while_a_notify_runs_ends_the_mission_at_once() -> None:
 
     result = dispatcher.step(IDLE_STATE, after=1.0)
 
-    assert (dispatcher.mission.state, dispatcher.node("n")) == (engine.CANCELED, engine.CANCELED)
-    assert (result.actions, result.messages, result.robot_state) == ([], [], dispatch.IDLE)
+    assert (dispatcher.mission.state, dispatcher.node("n")) == (MissionState.CANCELED, MissionState.CANCELED)
+    assert (result.actions, result.messages, result.robot_state) == ([], [], RobotState.IDLE)
 
 
 def test_canceling_after_the_robot_finished_its_order_ends_the_mission_at_once() -> None:
@@ -243,12 +244,12 @@ def test_canceling_after_the_robot_finished_its_order_ends_the_mission_at_once()
 
     result = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FINISHED), after=1.0)
 
-    assert dispatcher.mission.state == engine.CANCELED
+    assert dispatcher.mission.state == MissionState.CANCELED
     assert (result.actions, orders_sent(result)) == ([], [])
 
 
 def test_a_mission_deleted_while_running_is_canceled_then_deleted() -> None:
-    dispatcher = _canceled(started(), lifecycle=dispatch.PENDING_DELETE)
+    dispatcher = _canceled(started(), lifecycle=Lifecycle.PENDING_DELETE)
     order = dispatcher.order
     first = dispatcher.step(on_order(order, 0), after=1.0)
     [cancel] = cancel_actions(first.actions)
@@ -262,31 +263,31 @@ def test_a_mission_deleted_while_running_is_canceled_then_deleted() -> None:
     )
 
     assert (dispatcher.mission.state, result.delete_mission, result.robot_state) == (
-        engine.CANCELED,
+        MissionState.CANCELED,
         True,
-        dispatch.IDLE,
+        RobotState.IDLE,
     )
 
 
 def test_a_mission_marked_for_deletion_is_deleted_when_it_ends() -> None:
     dispatcher = started()
-    dispatcher.mission = replace(dispatcher.mission, lifecycle=dispatch.PENDING_DELETE)
+    dispatcher.mission = replace(dispatcher.mission, lifecycle=Lifecycle.PENDING_DELETE)
 
     result = dispatcher.step(finished(dispatcher.order), after=1.0)
 
-    assert (dispatcher.mission.state, result.delete_mission) == (engine.COMPLETED, True)
+    assert (dispatcher.mission.state, result.delete_mission) == (MissionState.COMPLETED, True)
 
 
 def test_a_robot_deleted_during_a_mission_fails_it_and_is_deleted_without_cancel_order() -> None:
     dispatcher = started()
-    dispatcher.robot = replace(dispatcher.robot, lifecycle=dispatch.PENDING_DELETE)
+    dispatcher.robot = replace(dispatcher.robot, lifecycle=Lifecycle.PENDING_DELETE)
 
     result = dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
 
     ended = dispatcher.mission
     assert (ended.state, ended.failure_category, ended.failure_reason) == (
-        engine.FAILED,
-        dispatch.ROBOT_APP,
+        MissionState.FAILED,
+        FailureCategory.ROBOT_APP,
         "Robot carter01 was deleted",
     )
     assert (result.delete_robot, result.actions, result.messages) == (True, [], [])
@@ -326,7 +327,7 @@ def test_an_update_equal_to_the_sent_route_changes_nothing() -> None:
 
     result = dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
 
-    assert (result.actions, result.messages, dispatcher.node("r")) == ([], [], engine.RUNNING)
+    assert (result.actions, result.messages, dispatcher.node("r")) == ([], [], MissionState.RUNNING)
 
 
 def _updated_while_running() -> tuple[Dispatcher, dispatch.ActionRecord]:
@@ -347,8 +348,8 @@ def test_an_update_of_the_running_route_cancels_its_order_first() -> None:
     assert [a.action_id for a in instant_actions_sent(result)] == [cancel.action_id]
     assert (orders_sent(result), dispatcher.node("r"), dispatcher.mission.state) == (
         [],
-        engine.RUNNING,
-        engine.RUNNING,
+        MissionState.RUNNING,
+        MissionState.RUNNING,
     )
 
 
@@ -357,7 +358,7 @@ def test_an_updated_route_sends_nothing_until_the_cancel_is_confirmed() -> None:
 
     result = dispatcher.step(on_order(dispatcher.order, 0, driving=True), after=4.0)
 
-    assert (result.messages, dispatcher.node("r")) == ([], engine.RUNNING)
+    assert (result.messages, dispatcher.node("r")) == ([], MissionState.RUNNING)
 
 
 def _cancel_confirmed(dispatcher: Dispatcher, cancel: dispatch.ActionRecord):
@@ -387,7 +388,7 @@ def test_an_updated_route_is_resent_as_a_new_order_with_the_next_attempt() -> No
         9.0,
         9.5,
     )
-    assert (dispatcher.node("r"), dispatcher.mission.attempts) == (engine.RUNNING, {"r": 2})
+    assert (dispatcher.node("r"), dispatcher.mission.attempts) == (MissionState.RUNNING, {"r": 2})
     assert dispatcher.mission.order["orderId"] == "m1-n0-r1"
 
 
@@ -402,7 +403,9 @@ def test_the_stale_order_of_an_updated_route_is_never_sent_again() -> None:
 
     sent = [order.order_id for result in later for order in orders_sent(result)]
     assert set(sent) == {new_order.order_id}
-    assert dispatcher.step(finished(new_order), after=1.0) and dispatcher.mission.state == engine.COMPLETED
+    assert (
+        dispatcher.step(finished(new_order), after=1.0) and dispatcher.mission.state == MissionState.COMPLETED
+    )
 
 
 def test_an_update_of_an_unaccepted_route_never_resends_the_stale_order() -> None:
@@ -422,8 +425,8 @@ def test_a_canceled_mission_whose_robot_never_confirms_times_out() -> None:
     result = dispatcher.step(on_order(dispatcher.order, 0), after=9.0)
 
     assert (dispatcher.mission.state, dispatcher.mission.failure_category) == (
-        engine.FAILED,
-        dispatch.TIMEOUT,
+        MissionState.FAILED,
+        FailureCategory.TIMEOUT,
     )
     assert len(cancel_actions(result.actions)) == 1  # the same cancelOrder, not a second one
 
@@ -433,7 +436,7 @@ def test_canceling_a_mission_during_pause_order_returns_the_robot_to_idle() -> N
     order = dispatcher.order
     running = dispatcher.step(on_order(order, 0, action_status=ActionStatus.RUNNING), after=1.0)
     [cancel] = cancel_actions(running.actions)
-    assert running.robot_state == dispatch.TELEOP
+    assert running.robot_state == RobotState.TELEOP
 
     result = dispatcher.step(
         on_order(
@@ -445,5 +448,5 @@ def test_canceling_a_mission_during_pause_order_returns_the_robot_to_idle() -> N
         after=1.0,
     )
 
-    assert dispatcher.mission.state == engine.CANCELED
-    assert result.robot_state == dispatch.IDLE
+    assert dispatcher.mission.state == MissionState.CANCELED
+    assert result.robot_state == RobotState.IDLE

@@ -2,7 +2,8 @@
 
 import pytest
 
-from missions import dispatch, engine
+from missions import dispatch
+from missions.vocabulary import MissionState
 from tests.dispatch.builders import (
     IDLE_STATE,
     SETTINGS,
@@ -78,7 +79,7 @@ def test_acceptance_is_recorded_once_the_robot_reports_the_order() -> None:
     result = dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
 
     assert dispatcher.mission.order_accepted is True
-    assert dispatcher.node("r") == engine.RUNNING
+    assert dispatcher.node("r") == MissionState.RUNNING
     assert result.messages == []
 
 
@@ -117,11 +118,11 @@ def test_a_rejected_order_fails_the_leaf_with_the_errors_description(rejection) 
 
     assert result.rejected is True
     assert dispatcher.mission.node_status["r"] == {
-        "state": engine.FAILED,
+        "state": MissionState.FAILED,
         "error_msg": "nodePosition missing",
     }
     assert dispatcher.mission.failure_reason == "nodePosition missing"
-    assert dispatcher.mission.state == engine.FAILED
+    assert dispatcher.mission.state == MissionState.FAILED
     assert result.messages == []
 
 
@@ -139,7 +140,7 @@ def test_an_error_referencing_another_order_is_no_rejection() -> None:
     result = dispatcher.step(robot_state(errors=[error("orderError", orderId="m1-n0-r7")]), after=0.5)
 
     assert result.rejected is False
-    assert (dispatcher.mission.state, dispatcher.node("r")) == (engine.RUNNING, engine.RUNNING)
+    assert (dispatcher.mission.state, dispatcher.node("r")) == (MissionState.RUNNING, MissionState.RUNNING)
 
 
 def test_an_error_naming_another_update_of_the_order_is_no_rejection() -> None:
@@ -149,7 +150,7 @@ def test_an_error_naming_another_update_of_the_order_is_no_rejection() -> None:
         robot_state(errors=[error("orderError", orderId="m1-n0-r0", orderUpdateId="3")]), after=0.5
     )
 
-    assert dispatcher.node("r") == engine.RUNNING
+    assert dispatcher.node("r") == MissionState.RUNNING
 
 
 def test_a_rejected_leaf_in_a_selector_moves_on_to_the_next_leafs_order() -> None:
@@ -158,7 +159,7 @@ def test_a_rejected_leaf_in_a_selector_moves_on_to_the_next_leafs_order() -> Non
     result = dispatcher.step(robot_state(errors=[error("orderError", orderId="m1-n1-r0")]), after=0.5)
 
     assert result.rejected is True
-    assert (dispatcher.node("a"), dispatcher.node("r")) == (engine.FAILED, engine.RUNNING)
+    assert (dispatcher.node("a"), dispatcher.node("r")) == (MissionState.FAILED, MissionState.RUNNING)
     assert [order.order_id for order in orders_sent(result)] == ["m1-n2-r0"]
     assert dispatcher.mission.current_node == 2
 
@@ -168,7 +169,7 @@ def test_a_robot_that_accepts_and_finishes_in_one_state_completes_the_leaf() -> 
 
     dispatcher.step(finished(dispatcher.order), after=0.5)
 
-    assert (dispatcher.mission.order_accepted, dispatcher.mission.state) == (True, engine.COMPLETED)
+    assert (dispatcher.mission.order_accepted, dispatcher.mission.state) == (True, MissionState.COMPLETED)
 
 
 def test_an_unaccepted_order_is_not_resent_while_the_robot_is_in_manual_mode() -> None:

@@ -4,7 +4,8 @@ from dataclasses import replace
 
 import pytest
 
-from missions import dispatch, engine
+from missions import dispatch
+from missions.vocabulary import FailureCategory, MissionState, RobotState
 from tests.dispatch.builders import (
     NOW,
     action,
@@ -20,7 +21,7 @@ from tests.dispatch.builders import (
     sequence,
     started,
 )
-from vda5050.models import ActionStatus, ErrorLevel
+from vda5050.models import ActionStatus, ActionType, ErrorLevel
 
 THREE_EXACT_WAYPOINTS = route("r", (1.0, 0.0), (2.0, 0.0), (3.0, 0.0), allowedDeviationXY=0.0)
 
@@ -32,7 +33,7 @@ def test_task_status_counts_the_exactly_reached_waypoints(reached: int, task_sta
     dispatcher.step(on_order(dispatcher.order, reached, driving=True), after=1.0)
 
     assert dispatcher.mission.task_status == {"r": task_status}
-    assert dispatcher.node("r") == engine.RUNNING
+    assert dispatcher.node("r") == MissionState.RUNNING
 
 
 def test_task_status_ignores_waypoints_with_a_tolerance() -> None:
@@ -48,7 +49,7 @@ def test_a_route_is_not_complete_while_the_robot_still_has_nodes_to_go() -> None
 
     dispatcher.step(on_order(dispatcher.order, 4), after=1.0)
 
-    assert dispatcher.node("r") == engine.RUNNING
+    assert dispatcher.node("r") == MissionState.RUNNING
 
 
 def test_a_route_is_not_complete_at_its_last_node_while_an_action_still_runs() -> None:
@@ -56,7 +57,7 @@ def test_a_route_is_not_complete_at_its_last_node_while_an_action_still_runs() -
 
     dispatcher.step(on_order(dispatcher.order, 6, extra_actions=[("x", ActionStatus.RUNNING)]), after=1.0)
 
-    assert (dispatcher.node("r"), dispatcher.mission.task_status) == (engine.RUNNING, {"r": 3})
+    assert (dispatcher.node("r"), dispatcher.mission.task_status) == (MissionState.RUNNING, {"r": 3})
 
 
 def test_a_route_completes_at_its_last_node_with_the_robot_idle_and_the_mission_with_it() -> None:
@@ -67,17 +68,17 @@ def test_a_route_completes_at_its_last_node_with_the_robot_idle_and_the_mission_
 
     ended = dispatcher.mission
     assert (ended.state, ended.end_timestamp, ended.failure_reason, ended.failure_category) == (
-        engine.COMPLETED,
+        MissionState.COMPLETED,
         NOW.replace(second=1),
         None,
         None,
     )
     assert (ended.task_status, ended.order, ended.current_node) == ({"r": 3}, None, 0)
     assert ended.node_status == {
-        "root": {"state": engine.COMPLETED, "error_msg": None},
-        "r": {"state": engine.COMPLETED, "error_msg": None},
+        "root": {"state": MissionState.COMPLETED, "error_msg": None},
+        "r": {"state": MissionState.COMPLETED, "error_msg": None},
     }
-    assert (result.robot_state, result.messages) == (dispatch.IDLE, [])
+    assert (result.robot_state, result.messages) == (RobotState.IDLE, [])
 
 
 def test_a_move_completes_at_its_target_node() -> None:
@@ -85,7 +86,7 @@ def test_a_move_completes_at_its_target_node() -> None:
 
     dispatcher.step(finished(dispatcher.order), after=1.0)
 
-    assert dispatcher.mission.state == engine.COMPLETED
+    assert dispatcher.mission.state == MissionState.COMPLETED
 
 
 def test_a_completed_leaf_sends_the_next_leafs_order_and_moves_current_node() -> None:
@@ -97,12 +98,12 @@ def test_a_completed_leaf_sends_the_next_leafs_order_and_moves_current_node() ->
     assert order.order_id == "m1-n1-r0"
     assert (order.nodes[-1].node_position.x, order.nodes[-1].node_position.y) == (8.0, 9.0)
     assert (dispatcher.node("r1"), dispatcher.node("r2"), dispatcher.mission.current_node) == (
-        engine.COMPLETED,
-        engine.RUNNING,
+        MissionState.COMPLETED,
+        MissionState.RUNNING,
         1,
     )
     assert (dispatcher.mission.order_accepted, dispatcher.mission.order_sent_at) == (False, dispatcher.now)
-    assert result.robot_state == dispatch.ON_TASK
+    assert result.robot_state == RobotState.ON_TASK
 
 
 def test_a_finished_action_completes_its_leaf() -> None:
@@ -110,7 +111,10 @@ def test_a_finished_action_completes_its_leaf() -> None:
 
     dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FINISHED), after=1.0)
 
-    assert (dispatcher.node("a"), dispatcher.mission.state) == (engine.COMPLETED, engine.COMPLETED)
+    assert (dispatcher.node("a"), dispatcher.mission.state) == (
+        MissionState.COMPLETED,
+        MissionState.COMPLETED,
+    )
 
 
 @pytest.mark.parametrize("status", [ActionStatus.WAITING, ActionStatus.INITIALIZING, ActionStatus.RUNNING])
@@ -119,8 +123,8 @@ def test_an_action_still_in_progress_keeps_its_leaf_running(status: ActionStatus
 
     result = dispatcher.step(on_order(dispatcher.order, 0, action_status=status), after=1.0)
 
-    assert dispatcher.node("a") == engine.RUNNING
-    assert result.robot_state == dispatch.ON_TASK
+    assert dispatcher.node("a") == MissionState.RUNNING
+    assert result.robot_state == RobotState.ON_TASK
 
 
 def test_a_failed_action_fails_its_leaf_with_the_robots_error_text() -> None:
@@ -138,9 +142,15 @@ def test_a_failed_action_fails_its_leaf_with_the_robots_error_text() -> None:
         after=1.0,
     )
 
-    assert dispatcher.mission.node_status["a"] == {"state": engine.FAILED, "error_msg": "gripper jammed"}
-    assert (dispatcher.mission.state, dispatcher.mission.failure_reason) == (engine.FAILED, "gripper jammed")
-    assert dispatcher.mission.failure_category == dispatch.ROBOT_APP
+    assert dispatcher.mission.node_status["a"] == {
+        "state": MissionState.FAILED,
+        "error_msg": "gripper jammed",
+    }
+    assert (dispatcher.mission.state, dispatcher.mission.failure_reason) == (
+        MissionState.FAILED,
+        "gripper jammed",
+    )
+    assert dispatcher.mission.failure_category == FailureCategory.ROBOT_APP
 
 
 def test_a_failed_action_without_an_error_fails_its_leaf_with_action_failure() -> None:
@@ -149,7 +159,7 @@ def test_a_failed_action_without_an_error_fails_its_leaf_with_action_failure() -
     dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FAILED), after=1.0)
 
     assert dispatcher.mission.node_status["a"] == {
-        "state": engine.FAILED,
+        "state": MissionState.FAILED,
         "error_msg": dispatch.ACTION_FAILURE,
     }
     assert dispatcher.mission.failure_reason == dispatch.ACTION_FAILURE
@@ -159,13 +169,13 @@ def test_pause_order_hands_the_robot_to_teleop_while_it_runs_and_back_when_finis
     dispatcher = started(action("p", dispatch.PAUSE_ORDER), route("r"))
 
     running = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.RUNNING), after=1.0)
-    assert (running.robot_state, dispatcher.node("p")) == (dispatch.TELEOP, engine.RUNNING)
+    assert (running.robot_state, dispatcher.node("p")) == (RobotState.TELEOP, MissionState.RUNNING)
 
     done = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FINISHED), after=1.0)
     assert (done.robot_state, dispatcher.node("p"), dispatcher.node("r")) == (
-        dispatch.ON_TASK,
-        engine.COMPLETED,
-        engine.RUNNING,
+        RobotState.ON_TASK,
+        MissionState.COMPLETED,
+        MissionState.RUNNING,
     )
     assert [order.order_id for order in orders_sent(done)] == ["m1-n1-r0"]
 
@@ -175,7 +185,7 @@ def test_pause_order_not_yet_reported_leaves_the_robot_on_task() -> None:
 
     result = dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
 
-    assert result.robot_state == dispatch.ON_TASK
+    assert result.robot_state == RobotState.ON_TASK
 
 
 def test_a_running_action_of_another_type_does_not_switch_to_teleop() -> None:
@@ -183,7 +193,7 @@ def test_a_running_action_of_another_type_does_not_switch_to_teleop() -> None:
 
     result = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.RUNNING), after=1.0)
 
-    assert result.robot_state == dispatch.ON_TASK
+    assert result.robot_state == RobotState.ON_TASK
 
 
 def _order_reference(order, kind: str) -> dict[str, str]:
@@ -215,15 +225,18 @@ def test_a_fatal_error_referencing_the_order_fails_the_leaf_and_cancels_the_busy
         on_order(order, 0, action_status=ActionStatus.RUNNING, errors=[fatal]), after=1.0
     )
 
-    assert dispatcher.mission.node_status["r"] == {"state": engine.FAILED, "error_msg": "path blocked"}
-    assert (dispatcher.mission.state, dispatcher.mission.failure_reason) == (engine.FAILED, "path blocked")
-    assert dispatcher.mission.failure_category == dispatch.ROBOT_APP
+    assert dispatcher.mission.node_status["r"] == {"state": MissionState.FAILED, "error_msg": "path blocked"}
+    assert (dispatcher.mission.state, dispatcher.mission.failure_reason) == (
+        MissionState.FAILED,
+        "path blocked",
+    )
+    assert dispatcher.mission.failure_category == FailureCategory.ROBOT_APP
     [cancel] = cancel_actions(result.actions)
     assert cancel.action_id.startswith(f"{order.order_id}-cancel")
     assert [(a.action_type, a.action_id) for a in instant_actions_sent(result)] == [
-        (dispatch.CANCEL_ORDER, cancel.action_id)
+        (ActionType.CANCEL_ORDER, cancel.action_id)
     ]
-    assert result.robot_state == dispatch.IDLE
+    assert result.robot_state == RobotState.IDLE
 
 
 def test_a_fatal_error_with_the_robot_already_idle_sends_no_cancel() -> None:
@@ -236,7 +249,7 @@ def test_a_fatal_error_with_the_robot_already_idle_sends_no_cancel() -> None:
         after=1.0,
     )
 
-    assert dispatcher.mission.state == engine.FAILED
+    assert dispatcher.mission.state == MissionState.FAILED
     assert (result.actions, result.messages) == ([], [])
 
 
@@ -247,8 +260,8 @@ def test_a_fatal_error_without_references_fails_the_leaf() -> None:
         on_order(dispatcher.order, 0, errors=[error("emergencyStop", description="e-stop")]), after=1.0
     )
 
-    assert dispatcher.mission.node_status["r"] == {"state": engine.FAILED, "error_msg": "e-stop"}
-    assert dispatcher.mission.state == engine.FAILED
+    assert dispatcher.mission.node_status["r"] == {"state": MissionState.FAILED, "error_msg": "e-stop"}
+    assert dispatcher.mission.state == MissionState.FAILED
 
 
 def test_several_fatal_errors_are_joined_into_the_failure_reason() -> None:
@@ -284,8 +297,8 @@ def test_warnings_and_fatal_errors_about_other_orders_are_ignored(ignored) -> No
     result = dispatcher.step(on_order(dispatcher.order, 0, errors=[ignored]), after=1.0)
 
     assert (dispatcher.node("r"), dispatcher.mission.state, dispatcher.mission.failure_reason) == (
-        engine.RUNNING,
-        engine.RUNNING,
+        MissionState.RUNNING,
+        MissionState.RUNNING,
         None,
     )
     assert result.actions == []
@@ -298,21 +311,21 @@ def test_a_selector_recovers_from_a_failed_action_and_the_mission_completes() ->
 
     failed = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FAILED), after=1.0)
     assert (dispatcher.node("a"), dispatcher.node("r"), dispatcher.mission.current_node) == (
-        engine.FAILED,
-        engine.RUNNING,
+        MissionState.FAILED,
+        MissionState.RUNNING,
         3,
     )
     assert [order.order_id for order in orders_sent(failed)] == ["m1-n3-r0"]
-    assert dispatcher.mission.state == engine.RUNNING
+    assert dispatcher.mission.state == MissionState.RUNNING
 
     done = dispatcher.step(finished(dispatcher.order), after=1.0)
     assert (dispatcher.mission.state, dispatcher.node("s"), dispatcher.mission.failure_reason) == (
-        engine.COMPLETED,
-        engine.COMPLETED,
+        MissionState.COMPLETED,
+        MissionState.COMPLETED,
         None,
     )
     assert dispatcher.mission.node_status["a"]["error_msg"] == dispatch.ACTION_FAILURE
-    assert done.robot_state == dispatch.IDLE
+    assert done.robot_state == RobotState.IDLE
 
 
 def test_a_failed_leaf_in_a_sequence_fails_the_mission_and_skips_its_siblings() -> None:
@@ -322,13 +335,13 @@ def test_a_failed_leaf_in_a_sequence_fails_the_mission_and_skips_its_siblings() 
 
     ended = dispatcher.mission
     assert (ended.state, ended.failure_category, ended.failure_reason) == (
-        engine.FAILED,
-        dispatch.ROBOT_APP,
+        MissionState.FAILED,
+        FailureCategory.ROBOT_APP,
         dispatch.ACTION_FAILURE,
     )
-    assert (dispatcher.node("q"), dispatcher.node("r")) == (engine.FAILED, engine.PENDING)
+    assert (dispatcher.node("q"), dispatcher.node("r")) == (MissionState.FAILED, MissionState.PENDING)
     assert (ended.end_timestamp, ended.order) == (dispatcher.now, None)
-    assert (result.robot_state, orders_sent(result)) == (dispatch.IDLE, [])
+    assert (result.robot_state, orders_sent(result)) == (RobotState.IDLE, [])
 
 
 def test_the_next_leafs_order_waits_until_the_robot_is_idle() -> None:
@@ -339,8 +352,8 @@ def test_the_next_leafs_order_waits_until_the_robot_is_idle() -> None:
 
     waiting = dispatcher.step(busy, after=1.0)
     assert (dispatcher.node("a"), dispatcher.node("r"), waiting.messages) == (
-        engine.COMPLETED,
-        engine.PENDING,
+        MissionState.COMPLETED,
+        MissionState.PENDING,
         [],
     )
 
@@ -364,8 +377,8 @@ def test_the_next_leafs_order_waits_while_the_robot_is_offline() -> None:
     result = dispatcher.step(finished(dispatcher.order), after=1.0)
 
     assert (dispatcher.node("r1"), dispatcher.node("r2"), result.messages) == (
-        engine.COMPLETED,
-        engine.PENDING,
+        MissionState.COMPLETED,
+        MissionState.PENDING,
         [],
     )
 
@@ -378,15 +391,15 @@ def test_a_mission_of_routes_in_a_selector_waits_for_the_cancel_of_a_failed_orde
     failed = dispatcher.step(on_order(order, 0, errors=[fatal]), after=1.0)
     [cancel] = cancel_actions(failed.actions)
     assert (dispatcher.node("r1"), dispatcher.node("r2"), orders_sent(failed)) == (
-        engine.FAILED,
-        engine.PENDING,
+        MissionState.FAILED,
+        MissionState.PENDING,
         [],
     )
 
     canceled = on_order(order, 0, extra_actions=[(cancel.action_id, ActionStatus.FINISHED)])
     idle = dispatcher.step(canceled.model_copy(update={"node_states": [], "edge_states": []}), after=1.0)
     assert [o.order_id for o in orders_sent(idle)] == ["m1-n2-r0"]
-    assert dispatcher.mission.state == engine.RUNNING
+    assert dispatcher.mission.state == MissionState.RUNNING
 
 
 def test_a_failed_pause_order_does_not_leave_the_robot_in_teleop() -> None:
@@ -395,5 +408,5 @@ def test_a_failed_pause_order_does_not_leave_the_robot_in_teleop() -> None:
 
     result = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FAILED), after=1.0)
 
-    assert dispatcher.mission.state == engine.FAILED
-    assert result.robot_state == dispatch.IDLE
+    assert dispatcher.mission.state == MissionState.FAILED
+    assert result.robot_state == RobotState.IDLE

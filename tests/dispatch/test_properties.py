@@ -9,6 +9,7 @@ from datetime import timedelta
 import pytest
 
 from missions import dispatch
+from missions.vocabulary import Lifecycle
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,
@@ -27,7 +28,7 @@ from tests.dispatch.builders import (
     route,
     started,
 )
-from vda5050.models import ActionStatus, ErrorLevel, OperatingMode, State
+from vda5050.models import ActionStatus, ActionType, ErrorLevel, OperatingMode, State
 
 # A scenario sets a dispatcher up and returns the state of the step under test and how much later it runs.
 Scenario = Callable[[], tuple[Dispatcher, State, float]]
@@ -84,12 +85,12 @@ def _notify_started() -> tuple[Dispatcher, State, float]:
     return Dispatcher(mission(notify("n"), route("r"))), IDLE_STATE, 0.0
 
 
-TELEOP_FINISHED = instant_action(dispatch.START_TELEOP, "teleop-1", sent_at=NOW)
+TELEOP_FINISHED = instant_action(ActionType.START_TELEOP, "teleop-1", sent_at=NOW)
 SCENARIOS: dict[str, Scenario] = {
     "start": _queued(),
     "waiting-for-battery": lambda: (Dispatcher(mission()), robot_state(battery=3.0), 0.0),
     "deadline-before-start": _queued(deadline=NOW),
-    "delete-before-start": _queued(lifecycle=dispatch.PENDING_DELETE),
+    "delete-before-start": _queued(lifecycle=Lifecycle.PENDING_DELETE),
     "resend-due": _on_running([route("r")], lambda d: IDLE_STATE, after=3.0),
     "accepted": _on_running([route("r", (1.0, 0.0), (2.0, 0.0))], lambda d: on_order(d.order, 0)),
     "progress": _on_running(
@@ -119,10 +120,10 @@ SCENARIOS: dict[str, Scenario] = {
     "cancel-confirmed": _canceled(_cancel_confirmed),
     "notify": _notify_started,
     "new-instant-actions": _with_actions(
-        instant_action(dispatch.FACTSHEET_REQUEST), instant_action(dispatch.STOP_TELEOP)
+        instant_action(ActionType.FACTSHEET_REQUEST), instant_action(ActionType.STOP_TELEOP)
     ),
     "instant-action-resend": _with_actions(
-        instant_action(dispatch.FACTSHEET_REQUEST, sent_at=NOW - SETTINGS.instant_action_resend)
+        instant_action(ActionType.FACTSHEET_REQUEST, sent_at=NOW - SETTINGS.instant_action_resend)
     ),
     "teleop-started": _with_actions(
         TELEOP_FINISHED, state=robot_state(action_states=[(TELEOP_FINISHED.action_id, ActionStatus.FINISHED)])

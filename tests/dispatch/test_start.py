@@ -5,7 +5,8 @@ from typing import Any
 
 import pytest
 
-from missions import dispatch, engine
+from missions import dispatch
+from missions.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     MISSION,
@@ -22,7 +23,7 @@ from tests.dispatch.builders import (
     robot_view,
     route,
 )
-from vda5050.models import ActionStatus, ErrorLevel, OperatingMode
+from vda5050.models import ActionStatus, ActionType, ErrorLevel, OperatingMode
 
 
 @pytest.mark.parametrize(
@@ -30,9 +31,9 @@ from vda5050.models import ActionStatus, ErrorLevel, OperatingMode
     [
         pytest.param({"online": False}, IDLE_STATE, [], "Robot is offline", id="offline"),
         pytest.param({}, None, [], "Robot is offline", id="no-state-yet"),
-        pytest.param({"state": dispatch.TELEOP}, IDLE_STATE, [], "Robot is in teleop", id="teleop"),
+        pytest.param({"state": RobotState.TELEOP}, IDLE_STATE, [], "Robot is in teleop", id="teleop"),
         pytest.param(
-            {"lifecycle": dispatch.PENDING_DELETE},
+            {"lifecycle": Lifecycle.PENDING_DELETE},
             IDLE_STATE,
             [],
             "Robot is being deleted",
@@ -72,7 +73,7 @@ from vda5050.models import ActionStatus, ErrorLevel, OperatingMode
         pytest.param(
             {},
             IDLE_STATE,
-            [instant_action(dispatch.CANCEL_ORDER, sent_at=NOW)],
+            [instant_action(ActionType.CANCEL_ORDER, sent_at=NOW)],
             "Waiting for the robot to cancel its previous order",
             id="cancel-order-pending",
         ),
@@ -85,7 +86,7 @@ def test_a_queued_mission_waits_and_says_why(
 
     result = checked_step(state=state, mission=queued, robot=robot_view(**robot), actions=actions)
 
-    assert result.mission.state == engine.PENDING
+    assert result.mission.state == MissionState.PENDING
     assert result.mission.waiting_reason == waiting_reason
     assert result.mission.start_timestamp is None
     assert orders_sent(result) == []
@@ -107,7 +108,7 @@ def test_a_queued_mission_waits_and_says_why(
 def test_a_queued_mission_starts_whenever_the_robot_can_take_it(state) -> None:
     result = checked_step(state=state, mission=mission())
 
-    assert result.mission.state == engine.RUNNING
+    assert result.mission.state == MissionState.RUNNING
     assert len(orders_sent(result)) == 1
 
 
@@ -116,21 +117,25 @@ def test_a_waiting_reason_is_cleared_when_the_mission_starts() -> None:
 
     started = checked_step(state=IDLE_STATE, mission=waiting)
 
-    assert (started.mission.state, started.mission.waiting_reason) == (engine.RUNNING, None)
+    assert (started.mission.state, started.mission.waiting_reason) == (MissionState.RUNNING, None)
 
 
 def test_start_sets_running_start_time_robot_on_task_and_sends_the_first_route_order() -> None:
     result = checked_step(state=IDLE_STATE, mission=mission(route("r", (5.0, 6.0), (7.0, 8.0))))
 
     started = result.mission
-    assert (started.state, started.start_timestamp, started.end_timestamp) == (engine.RUNNING, NOW, None)
+    assert (started.state, started.start_timestamp, started.end_timestamp) == (
+        MissionState.RUNNING,
+        NOW,
+        None,
+    )
     assert started.node_status == {
-        "root": {"state": engine.RUNNING, "error_msg": None},
-        "r": {"state": engine.RUNNING, "error_msg": None},
+        "root": {"state": MissionState.RUNNING, "error_msg": None},
+        "r": {"state": MissionState.RUNNING, "error_msg": None},
     }
     assert (started.current_node, started.attempts, started.order_sent_at) == (0, {"r": 1}, NOW)
     assert started.order_accepted is False
-    assert result.robot_state == dispatch.ON_TASK
+    assert result.robot_state == RobotState.ON_TASK
     [order] = orders_sent(result)
     assert started.order == order.model_dump(mode="json", by_alias=True, exclude_none=True)
     assert (order.order_id, order.order_update_id) == (f"{MISSION}-n0-r0", 0)
@@ -175,9 +180,9 @@ def test_the_first_order_of_an_action_is_one_node_with_the_action_and_its_parame
 def test_a_robot_without_a_position_fails_the_leaf_instead_of_guessing_a_start() -> None:
     result = checked_step(state=robot_state(pose=None), mission=mission())
 
-    assert result.mission.state == engine.FAILED
+    assert result.mission.state == MissionState.FAILED
     assert result.mission.node_status["r"] == {
-        "state": engine.FAILED,
+        "state": MissionState.FAILED,
         "error_msg": "Robot does not report its position",
     }
     assert orders_sent(result) == []
@@ -187,44 +192,51 @@ def test_a_queued_mission_past_its_deadline_fails_without_starting() -> None:
     result = checked_step(state=IDLE_STATE, mission=mission(deadline=NOW - timedelta(seconds=1)))
 
     ended = result.mission
-    assert (ended.state, ended.failure_category) == (engine.FAILED, dispatch.DEADLINE)
+    assert (ended.state, ended.failure_category) == (MissionState.FAILED, FailureCategory.DEADLINE)
     assert (ended.failure_reason, ended.start_timestamp, ended.end_timestamp) == (
         dispatch.DEADLINE_PASSED,
         None,
         NOW,
     )
-    assert ended.node_status["root"]["state"] == engine.FAILED
-    assert ended.node_status["r"]["state"] == engine.PENDING
-    assert (result.messages, result.robot_state, result.delete_mission) == ([], dispatch.IDLE, False)
+    assert ended.node_status["root"]["state"] == MissionState.FAILED
+    assert ended.node_status["r"]["state"] == MissionState.PENDING
+    assert (result.messages, result.robot_state, result.delete_mission) == ([], RobotState.IDLE, False)
 
 
 def test_a_queued_mission_before_its_deadline_starts() -> None:
     result = checked_step(state=IDLE_STATE, mission=mission(deadline=NOW + timedelta(seconds=1)))
 
-    assert result.mission.state == engine.RUNNING
+    assert result.mission.state == MissionState.RUNNING
 
 
 def test_a_queued_mission_past_its_deadline_fails_even_while_the_robot_is_offline() -> None:
     result = checked_step(state=None, mission=mission(deadline=NOW), robot=robot_view(online=False))
 
-    assert (result.mission.state, result.mission.failure_category) == (engine.FAILED, dispatch.DEADLINE)
+    assert (result.mission.state, result.mission.failure_category) == (
+        MissionState.FAILED,
+        FailureCategory.DEADLINE,
+    )
 
 
 def test_a_queued_mission_marked_for_deletion_is_deleted_without_starting() -> None:
-    result = checked_step(state=IDLE_STATE, mission=mission(lifecycle=dispatch.PENDING_DELETE))
+    result = checked_step(state=IDLE_STATE, mission=mission(lifecycle=Lifecycle.PENDING_DELETE))
 
     assert result.delete_mission is True
-    assert (result.mission.state, result.messages, result.robot_state) == (engine.PENDING, [], dispatch.IDLE)
+    assert (result.mission.state, result.messages, result.robot_state) == (
+        MissionState.PENDING,
+        [],
+        RobotState.IDLE,
+    )
 
 
 def test_a_queued_mission_with_needs_canceled_ends_canceled_without_starting() -> None:
     result = checked_step(state=IDLE_STATE, mission=mission(needs_canceled=True))
 
     assert (result.mission.state, result.mission.failure_category) == (
-        engine.CANCELED,
-        dispatch.CANCELED_CATEGORY,
+        MissionState.CANCELED,
+        FailureCategory.CANCELED,
     )
-    assert (result.messages, result.robot_state) == ([], dispatch.IDLE)
+    assert (result.messages, result.robot_state) == ([], RobotState.IDLE)
 
 
 def test_a_queued_mission_waits_while_the_robot_reports_a_fatal_error() -> None:
@@ -233,7 +245,7 @@ def test_a_queued_mission_waits_while_the_robot_reports_a_fatal_error() -> None:
         mission=mission(),
     )
 
-    assert result.mission.state == engine.PENDING
+    assert result.mission.state == MissionState.PENDING
     assert result.mission.waiting_reason is not None
     assert orders_sent(result) == []
 
@@ -244,19 +256,19 @@ def test_a_mission_of_only_a_constant_completes_in_its_first_step() -> None:
     )
 
     assert (result.mission.state, result.mission.start_timestamp, result.mission.end_timestamp) == (
-        engine.COMPLETED,
+        MissionState.COMPLETED,
         NOW,
         NOW,
     )
-    assert (result.messages, result.robot_state) == ([], dispatch.IDLE)
+    assert (result.messages, result.robot_state) == ([], RobotState.IDLE)
 
 
 def test_a_mission_whose_route_update_names_a_missing_node_fails_with_the_reason() -> None:
     result = checked_step(state=IDLE_STATE, mission=mission(update_nodes={"missing": {"waypoints": []}}))
 
     assert (result.mission.state, result.mission.failure_reason, result.mission.failure_category) == (
-        engine.FAILED,
+        MissionState.FAILED,
         "Node missing does not exist",
-        dispatch.ROBOT_APP,
+        FailureCategory.ROBOT_APP,
     )
-    assert (result.messages, result.robot_state) == ([], dispatch.IDLE)
+    assert (result.messages, result.robot_state) == ([], RobotState.IDLE)

@@ -9,12 +9,7 @@ import copy
 import pytest
 
 from missions.engine import (
-    CANCELED,
-    COMPLETED,
-    FAILED,
-    PENDING,
     ROOT,
-    RUNNING,
     TreeError,
     finish,
     initial_node_status,
@@ -23,7 +18,7 @@ from missions.engine import (
     tick,
 )
 
-from .trees import play, route, selector, sequence, states
+from .trees import CANCELED, COMPLETED, FAILED, PENDING, RUNNING, play, route, selector, sequence, states
 
 CASES = [
     pytest.param(

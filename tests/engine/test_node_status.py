@@ -5,12 +5,7 @@ import copy
 import pytest
 
 from missions.engine import (
-    CANCELED,
-    COMPLETED,
-    FAILED,
-    PENDING,
     ROOT,
-    RUNNING,
     TreeError,
     initial_node_status,
     parse_tree,
@@ -18,7 +13,7 @@ from missions.engine import (
     tick,
 )
 
-from .trees import route, selector, states
+from .trees import CANCELED, COMPLETED, FAILED, PENDING, RUNNING, route, selector, states
 
 
 def test_initial_node_status_has_root_and_every_node_pending():

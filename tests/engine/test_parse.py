@@ -4,7 +4,8 @@ import copy
 
 import pytest
 
-from missions.engine import ROOT, SEQUENCE, TreeError, parse_tree
+from missions.engine import ROOT, TreeError, parse_tree
+from missions.vocabulary import NodeKind
 
 from .trees import action, constant, route, selector, sequence
 
@@ -24,7 +25,7 @@ def test_nodes_keep_list_order_index_kind_and_params():
 
 def test_children_in_list_order_under_an_implicit_root_sequence():
     tree = parse_tree([sequence("q"), route("b", "q"), route("c"), route("a", "q")])
-    assert (tree.root.name, tree.root.kind, tree.root.index) == (ROOT, SEQUENCE, None)
+    assert (tree.root.name, tree.root.kind, tree.root.index) == (ROOT, NodeKind.SEQUENCE, None)
     assert tree.root.children == ("q", "c")
     assert tree.node("q").children == ("b", "a")
     assert tree.node("c").children == ()

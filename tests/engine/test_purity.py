@@ -1,16 +1,34 @@
-"""The engine is pure: importing it pulls in neither Django, paho nor Redis."""
+"""The pure modules stay pure: importing the vocabulary, the engine, the dispatch step or the VDA 5050
+package pulls in neither Django, paho, Redis nor Celery."""
 
 import subprocess
 import sys
 
+import pytest
+
 CHECK = """
 import sys
-import missions.engine
-print(sorted({m.split(".")[0] for m in sys.modules} & {"django", "paho", "redis", "celery"}))
+import {module}
+print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "redis", "celery"}}))
 """
 
 
-def test_engine_imports_no_framework():
+@pytest.mark.parametrize(
+    "module",
+    [
+        "missions.vocabulary",
+        "missions.engine",
+        "missions.dispatch",
+        "vda5050",
+        "vda5050.codec",
+        "vda5050.models",
+        "vda5050.orders",
+        "vda5050.state",
+        "vda5050.topics",
+    ],
+)
+def test_pure_module_imports_no_framework(module):
     # A fresh interpreter: this test process already has Django loaded by pytest-django.
-    done = subprocess.run([sys.executable, "-c", CHECK], capture_output=True, text=True, check=True)
+    check = CHECK.format(module=module)
+    done = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"

@@ -4,9 +4,9 @@ import copy
 
 import pytest
 
-from missions.engine import RUNNING, TreeError, apply_route_updates, parse_tree, set_leaf_state, tick
+from missions.engine import TreeError, apply_route_updates, parse_tree, set_leaf_state, tick
 
-from .trees import action, play, route, selector
+from .trees import RUNNING, action, play, route, selector
 
 NEW_ROUTE = {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 1.5}, {"x": 7.0, "y": 8.0, "theta": 0.0}]}
 

@@ -8,9 +8,23 @@ The scenarios named "reference" reproduce the status sequences of the reference'
 
 import pytest
 
-from missions.engine import CANCELED, COMPLETED, FAILED, PENDING, ROOT, RUNNING
+from missions.engine import ROOT
 
-from .trees import action, constant, move, notify, play, route, selector, sequence
+from .trees import (
+    CANCELED,
+    COMPLETED,
+    FAILED,
+    PENDING,
+    RUNNING,
+    action,
+    constant,
+    move,
+    notify,
+    play,
+    route,
+    selector,
+    sequence,
+)
 
 CASES = [
     # --- flat trees: the implicit root sequence ---

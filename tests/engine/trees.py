@@ -4,11 +4,8 @@ import copy
 from typing import Any
 
 from missions.engine import (
-    DONE_STATES,
     LEAF_KINDS,
-    PENDING,
     ROOT,
-    RUNNING,
     TickResult,
     Tree,
     initial_node_status,
@@ -16,6 +13,11 @@ from missions.engine import (
     set_leaf_state,
     tick,
 )
+from missions.vocabulary import DONE_STATES, MissionState
+
+# Short names for the tables of node states in these tests.
+PENDING, RUNNING, COMPLETED = MissionState.PENDING, MissionState.RUNNING, MissionState.COMPLETED
+CANCELED, FAILED = MissionState.CANCELED, MissionState.FAILED
 
 Status = dict[str, dict[str, Any]]
 # One step: leaf results the caller writes, then the expected (mission_state, current_node, some node states).

@@ -1,0 +1,65 @@
+"""The fleet's vocabulary, defined once: mission and node states, node kinds, failure categories, robot
+states and lifecycles, spelled as in the reference API.
+
+Pure Python (no Django, paho or Redis imports), so the pure modules (``missions.engine``,
+``missions.dispatch``) use these enums directly, and the Django choices (``missions.choices``,
+``robots.choices``) are built from them. Members are ``str``: they compare equal to, hash as and
+serialize to the plain strings stored in the database and in JSON.
+"""
+
+from enum import StrEnum
+
+__all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionState", "NodeKind", "RobotState"]
+
+
+class MissionState(StrEnum):
+    """State of a mission and of each node of its tree."""
+
+    PENDING = "PENDING"
+    RUNNING = "RUNNING"
+    COMPLETED = "COMPLETED"
+    CANCELED = "CANCELED"
+    FAILED = "FAILED"
+
+
+# A mission (or node) in one of these has ended and does not change any more.
+DONE_STATES = frozenset({MissionState.COMPLETED, MissionState.CANCELED, MissionState.FAILED})
+
+
+class FailureCategory(StrEnum):
+    """Why a mission did not complete."""
+
+    ROBOT_APP = "ROBOT_APP"
+    TIMEOUT = "TIMEOUT"
+    DEADLINE = "DEADLINE"
+    CANCELED = "CANCELED"
+
+
+class NodeKind(StrEnum):
+    """The kinds a mission tree node can have; each node has exactly one."""
+
+    SELECTOR = "selector"
+    SEQUENCE = "sequence"
+    ROUTE = "route"
+    MOVE = "move"
+    ACTION = "action"
+    NOTIFY = "notify"
+    CONSTANT = "constant"
+
+
+class RobotState(StrEnum):
+    """What a robot is doing, as the API reports it."""
+
+    IDLE = "IDLE"
+    ON_TASK = "ON_TASK"
+    CHARGING = "CHARGING"
+    MAP_DEPLOYMENT = "MAP_DEPLOYMENT"
+    TELEOP = "TELEOP"
+
+
+class Lifecycle(StrEnum):
+    """Lifecycle of a robot or a mission: a deletion is asked for first and done once it is safe."""
+
+    ALIVE = "ALIVE"
+    PENDING_DELETE = "PENDING_DELETE"
+    DELETED = "DELETED"
