@@ -28,9 +28,13 @@ test: install
 lint: install
 	$(VENV)/bin/ruff check .
 
-# The benchmark: its own stack, the runs of bench/suite.py, bench/latest.md and .png (BENCH_SUITE=quick for a smoke run).
+# The benchmark: its own stack, the runs of bench/suite.py, bench/latest.md and .png (BENCH_SUITE=quick for a smoke
+# run); then the worker layouts: step capacity with one and with two step-worker processes (one bridge).
 bench: install
 	$(PY) -m bench.suite --suite $(or $(BENCH_SUITE),full)
+	rm -rf bench/results/layouts
+	$(PY) -m bench.suite --suite scale --workers 1 --output bench/results/layouts
+	$(PY) -m bench.suite --suite scale --workers 2 --output bench/results/layouts
 
 # Fault injection, the long run: a private stack (own PostgreSQL, Redis, Mosquitto), random faults from a seed
 # (FLEET_FAULT_SEED, else random; printed), checks afterwards (tests/faults). FAULTS_ARGS adds options.

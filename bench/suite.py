@@ -4,12 +4,13 @@ The stack uses its own database (`mission_dispatch_bench`), Redis database, API 
 (`deploy/mosquitto.conf`'s settings on port 1884), so it never mixes with `make run`; its processes are
 those of `deploy/Procfile` (no simulator), with `--bridges`
 bridges (sharing the robots' messages through an MQTT shared subscription) and `--workers` step-worker
-processes. What a second bridge and worker bring on a machine with more cores: the `scale` suite once per
-layout into one directory, whose `latest.md` then compares them (runs are labelled by layout;
-`mission-dispatch` alone is the Procfile's, one bridge and one worker).
+processes. Step capacity follows step-worker processes (where the machine has the cores); a bridge adds
+MQTT intake only. The `scale` suite once per layout into one directory, whose `latest.md` then compares them
+(runs are labelled by layout; `mission-dispatch` alone is the Procfile's, one bridge and one worker);
+`make bench` ends with this comparison of one and two workers (bench/results/layouts).
 
-    .venv/bin/python -m bench.suite --suite scale --bridges 1 --workers 1 --output bench/results/scale
-    .venv/bin/python -m bench.suite --suite scale --bridges 2 --workers 2 --output bench/results/scale
+    .venv/bin/python -m bench.suite --suite scale --workers 1 --output bench/results/layouts
+    .venv/bin/python -m bench.suite --suite scale --workers 2 --output bench/results/layouts
 """
 
 from __future__ import annotations
@@ -216,6 +217,10 @@ def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[None]:
             process.wait(timeout=60)
 
 
+def _count(number: int, what: str) -> str:
+    return f"{number} {what}" if number == 1 else f"{number} {what}s"
+
+
 def _wait_for_api(timeout: float = 60) -> None:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -246,7 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Runs are labelled by layout, so one report can compare layouts; the Procfile's keeps the old label.
     label = "mission-dispatch"
     if (args.bridges, args.workers) != (1, 1):
-        label += f" ({args.bridges} bridges, {args.workers} workers)"
+        label += f" ({_count(args.bridges, 'bridge')}, {_count(args.workers, 'worker')})"
     with autovacuum(), stack(args.output / "logs", bridges=args.bridges, workers=args.workers):
         for name, run in SUITES[args.suite].items():
             print(f"--- {name}", flush=True)

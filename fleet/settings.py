@@ -148,6 +148,8 @@ CELERY_TASK_IGNORE_RESULT = True
 CELERY_TASK_ACKS_LATE = True
 CELERY_TASK_REJECT_ON_WORKER_LOST = True
 CELERY_WORKER_PREFETCH_MULTIPLIER = env_int("FLEET_CELERY_PREFETCH", 4)
+# No task has a rate limit: the worker skips their bookkeeping for every task.
+CELERY_WORKER_DISABLE_RATE_LIMITS = True
 CELERY_TASK_ALWAYS_EAGER = env_bool("FLEET_CELERY_EAGER", False)
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 # A worker whose broker (Redis) is away keeps trying to reconnect however long it takes (Celery's default
@@ -203,14 +205,12 @@ NOTIFY_BACKOFF_SECONDS = env_float("FLEET_NOTIFY_BACKOFF_SECONDS", 1.0)
 BRIDGE_STATUS_FLUSH_SECONDS = env_float("FLEET_BRIDGE_FLUSH_SECONDS", 1.0)
 # MQTT shared-subscription group: several bridges with the same group split the robots' messages.
 BRIDGE_SHARE_GROUP = env_str("FLEET_BRIDGE_SHARE_GROUP", "")
-# Processes on which a bridge runs the steps its robots' states call for, and threads in each (each thread
-# with a database connection).
-BRIDGE_STEP_PROCESSES = env_int("FLEET_BRIDGE_STEP_PROCESSES", 2)
-BRIDGE_STEP_THREADS = env_int("FLEET_BRIDGE_STEP_THREADS", 6)
 TELEMETRY_SENDER = env_str("FLEET_TELEMETRY_SENDER", "")
 
 # --- Celery queues and beat -----------------------------------------------------------------------
 STEP_QUEUE = "steps"
+# Robots a step task carries at most: a bridge batch or a sweep that asks for more makes several tasks.
+STEP_TASK_ROBOTS = env_int("FLEET_STEP_TASK_ROBOTS", 8)
 NOTIFY_QUEUE = "notify"
 CELERY_TASK_DEFAULT_QUEUE = STEP_QUEUE
 CELERY_BROKER_TRANSPORT_OPTIONS = {"visibility_timeout": env_int("FLEET_VISIBILITY_TIMEOUT", 60)}

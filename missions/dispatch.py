@@ -2,7 +2,7 @@
 
 Given what is stored (the robot, its current or next mission, its unfinished instant actions) and the
 robot's latest VDA 5050 state, `step` returns what to store and which messages to send. The caller
-(`missions.services.robot_step`) holds the robot's row lock, so steps of one robot never interleave; a
+(`missions.robot_step.robot_step`) holds the robot's row lock, so steps of one robot never interleave; a
 step only reads the latest state, so a duplicate or late wake-up just finds nothing to do.
 
 No Django, paho or Redis imports: states, kinds, categories and lifecycles are the vocabulary's
@@ -402,11 +402,6 @@ def _follow_order(
         _follow_route(state, mission, leaf, order)
 
 
-def arrived_after_order(state_arrived_at: datetime | None, order_sent_at: datetime) -> bool:
-    """A state that arrived then would hold the order sent at `order_sent_at`, had the robot got it."""
-    return state_arrived_at is not None and state_arrived_at >= order_sent_at + ORDER_ECHO
-
-
 def _resend_due(
     state: State,
     state_arrived_at: datetime | None,
@@ -760,12 +755,54 @@ def state_digest(state: State) -> StateDigest:
     )
 
 
+# --- Orders: taken, lacked, finished ---------------------------------------------------------------------
+# Every judgement of whether a robot took, lacks or finished its mission's order, wherever it is made: the
+# step itself (`_follow_order`, `_resend_due`); the bridge (`takes_order_only`: the state needs no step, the
+# flush marks the order accepted, `missions.robot_step.mission_orders_accepted`); beat (`order_lacked`: the
+# resend sweep, `order_finished`: the stalled-mission check, both read in `missions.selectors`).
+
+
+@dataclass(frozen=True)
+class HeldOrder:
+    """The order a robot's latest state holds, whether it is still busy with it, and when that state
+    arrived (None if not recorded)."""
+
+    order_id: str
+    order_update_id: int
+    busy: bool
+    arrived_at: datetime | None
+
+
+def arrived_after_order(state_arrived_at: datetime | None, order_sent_at: datetime) -> bool:
+    """A state that arrived then would hold the order sent at `order_sent_at`, had the robot got it."""
+    return state_arrived_at is not None and state_arrived_at >= order_sent_at + ORDER_ECHO
+
+
+def order_lacked(
+    held: HeldOrder | None, *, order_id: str | None, update_id: int | None, sent_at: datetime
+) -> bool:
+    """The robot's latest state arrived after the order had time to reach it, and is on another order or
+    on an older update of this one: its step will send the order again (`_resend_due`). A robot that took
+    the order but whose state has not been stepped yet, or whose state is still on its way, lacks nothing:
+    a step would find nothing to do, and under load only turn a backlog into more load."""
+    if held is None or not arrived_after_order(held.arrived_at, sent_at):
+        return False
+    return held.order_id != order_id or update_id is None or held.order_update_id < update_id
+
+
+def order_finished(held: HeldOrder | None, *, order_id: str, update_id: int) -> bool:
+    """The robot is idle at the end of this order (or a later update of it)."""
+    return (
+        held is not None and not held.busy and held.order_id == order_id and held.order_update_id >= update_id
+    )
+
+
 def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
     """The robot took a new order, or a newer update of the order it runs, and nothing else a step reads
     changed: the step that sent the order did all there is to do, so this state needs none.
 
     Whether the order is one of ours and the update the latest is for the bridge's acceptance write to
-    check (`missions.services.missions_accept_orders`). Leaving one order unfinished for another is not
+    check (`missions.robot_step.mission_orders_accepted`). Leaving one order unfinished for another is not
     taking an order only: the step must see the first one end.
     """
     if not after.busy or after.events != before.events:

@@ -9,13 +9,13 @@ from django.db.models import DateTimeField, ExpressionWrapper, F, Q, QuerySet, V
 from django.db.models.fields.json import KT
 from django.utils import timezone
 
+from fleet import livestate
 from fleet.api import QueryValidationError, object_get
 from missions import dispatch
 from missions.filters import MissionFilter
 from missions.models import Mission
 from missions.vocabulary import MissionState
 from robots.models import InstantAction, Robot
-from workers import livestate
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
 UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
@@ -104,22 +104,14 @@ def robots_stalled(*, now: datetime | None = None) -> list[str]:
         {
             robot
             for robot, order_id, update_id in rows
-            if (order := held[robot]) is not None
-            and not order.busy
-            and order.order_id == order_id
-            and update_id is not None
-            and order.order_update_id >= int(update_id)
+            if update_id is not None
+            and dispatch.order_finished(held[robot], order_id=order_id, update_id=int(update_id))
         }
     )
 
 
 def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
-    """The robots of `missions` whose step would send the mission's order again (`dispatch._resend_due`):
-    their latest state arrived well after the order and does not hold it.
-
-    A robot that took the order but whose state has not been stepped yet, or whose state is still on its
-    way, gets no step: it would find nothing to do, and under load only turn a backlog into more load.
-    """
+    """The robots of `missions` that lack their mission's order (`dispatch.order_lacked`)."""
     rows = list(
         missions.values_list("robot", "order_sent_at", KT("order__orderId"), KT("order__orderUpdateId"))
     )
@@ -127,18 +119,13 @@ def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
     return [
         robot
         for robot, sent_at, order_id, update_id in rows
-        if _not_taken(held[robot], sent_at, order_id, update_id)
+        if dispatch.order_lacked(
+            held[robot],
+            order_id=order_id,
+            update_id=-1 if update_id is None else int(update_id),
+            sent_at=sent_at,
+        )
     ]
-
-
-def _not_taken(
-    held: livestate.HeldOrder | None, sent_at: datetime, order_id: str | None, update_id: str | None
-) -> bool:
-    """The robot's latest state arrived after the order had time to reach it, and is on another order or
-    on an older update of this one."""
-    if held is None or not dispatch.arrived_after_order(held.arrived_at, sent_at):
-        return False
-    return held.order_id != order_id or update_id is None or held.order_update_id < int(update_id)
 
 
 def robots_with_missions() -> list[str]:

@@ -1,25 +1,22 @@
 """Changes to robots. Each runs in one transaction, locks the row it changes, and wakes the dispatch engine
-for the robot (after commit) so that the engine reacts to the change; the bridge's status write wakes
-nothing (the engine reads the robot's live state from Redis, not these columns)."""
+for the robot (after commit) so that the engine reacts to the change. What robots report is written by
+`robots.status`."""
 
-import time
-from collections.abc import Mapping, Sequence
-from functools import cache
+from collections.abc import Mapping
 from typing import Any
 
 from django.conf import settings
 from django.db import IntegrityError, connection, transaction
 
+from fleet import livestate
 from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
+from fleet.wake import wake_robot
 from missions.choices import MissionState
 from missions.models import Mission
 from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, TeleopAction
 from robots.models import InstantAction, Robot
 from vda5050.models import ActionType
 from vda5050.orders import new_action_id
-from workers import livestate
-from workers.steps import request_steps_or_later
-from workers.wake import wake_robot
 
 FACTSHEET_REQUEST = ActionType.FACTSHEET_REQUEST.value
 START_TELEOP = ActionType.START_TELEOP.value
@@ -116,115 +113,14 @@ def robot_teleop(*, robot: Robot, action: TeleopAction) -> Robot:
     return locked
 
 
-def robots_came_online(*, names: Sequence[str]) -> None:
-    """Mark robots online and ask each for its factsheet (sent by its next step, which the caller requests),
-    unless a request is already waiting.
-
-    One transaction for them all: robots come online in bursts (a fleet starting, a broker restart), and
-    the bridge does this between two batches of messages. The rows are locked first, in name order, so two
-    callers cannot deadlock and the check for a waiting request cannot race with another's insert.
-    """
-    with transaction.atomic():
-        locked = list(
-            Robot.objects.select_for_update()
-            .filter(name__in=names)
-            .order_by("name")
-            .values_list("name", flat=True)
-        )
-        Robot.objects.filter(name__in=locked).update(online=True)
-        if not settings.DISPATCH_REQUEST_FACTSHEET:
-            return
-        waiting = set(
-            InstantAction.objects.filter(
-                robot_id__in=locked, action_type=FACTSHEET_REQUEST, status__isnull=True
-            ).values_list("robot_id", flat=True)
-        )
-        InstantAction.objects.bulk_create(
-            [_instant_action(name, FACTSHEET_REQUEST) for name in locked if name not in waiting]
-        )
-
-
-def robot_check_heartbeats(*, now: float | None = None) -> list[str]:
-    """Make each robot's `online` follow what the bridges heard: offline once silent for longer than its
-    heartbeat_timeout, online again once heard within it; returns the robots whose flag changed.
-
-    The second half is what keeps the flag from staying wrong: the bridge marks a robot online in Redis
-    and then in PostgreSQL, and a bridge killed or a database away between the two left a robot offline
-    for good while it kept publishing.
-    """
-    now = time.time() if now is None else now
-    robots = list(Robot.objects.values_list("name", "heartbeat_timeout", "online"))
-    last_seen = livestate.last_seen([name for name, _, _ in robots])
-    silent, heard = [], []
-    for name, timeout, online in robots:
-        recent = last_seen[name] is not None and last_seen[name] + timeout >= now
-        if online and not recent:
-            silent.append(name)
-        elif not online and recent:
-            heard.append(name)
-    if silent:
-        Robot.objects.filter(name__in=silent).update(online=False)
-        for name in silent:
-            livestate.mark_offline(name)
-    if heard:
-        robots_came_online(names=heard)
-        livestate.mark_online(heard)
-    if silent or heard:
-        request_steps_or_later([*silent, *heard])
-    return [*silent, *heard]
-
-
-ROBOTS_BY_NAME_SQL = f"SELECT name FROM {Robot._meta.db_table} WHERE name = ANY(%s)"
-
-
-def robot_status_write(*, columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> set[str]:
-    """The bridge's status flush: write `columns` of each row's robot (the values, then the robot's name)
-    unless another transaction holds the robot; returns the robots skipped that way.
-
-    A robot a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
-    the steps of those robots queued behind the step it waited for (and two bridges' flushes never
-    deadlock). One statement locks, writes and (outside a transaction) commits, so the rows are held only
-    while it runs: a step that comes for one of them waits for no round trip of the flush. One more read
-    when some were skipped. Deleted robots are not skipped.
-    """
-    names = [row[-1] for row in rows]
-    with connection.cursor() as cursor:
-        cursor.execute(_status_write_sql(columns), [list(values) for values in zip(*rows, strict=True)])
-        written = {name for (name,) in cursor.fetchall()}
-        if len(written) == len(names):
-            return set()
-        cursor.execute(ROBOTS_BY_NAME_SQL, [[name for name in names if name not in written]])
-        return {name for (name,) in cursor.fetchall()}
-
-
-@cache
-def _status_write_sql(columns: tuple[str, ...]) -> str:
-    """One array per column (then the names): the same statement whatever the number of robots."""
-    fields = [Robot._meta.get_field(column) for column in (*columns, "name")]
-    arrays = ", ".join(f"%s::{field.db_type(connection)}[]" for field in fields)
-    quoted = [connection.ops.quote_name(field.column) for field in fields]
-    assignments = ", ".join(f"{column} = v.{column}" for column in quoted[:-1])
-    table = Robot._meta.db_table
-    return f"""
-        WITH status AS (SELECT * FROM unnest({arrays}) AS v({", ".join(quoted)})),
-            free AS (
-                SELECT name FROM {table} WHERE name IN (SELECT name FROM status)
-                FOR NO KEY UPDATE SKIP LOCKED
-            )
-        UPDATE {table} AS r SET {assignments}
-        FROM status AS v WHERE r.name = v.name AND r.name IN (SELECT name FROM free)
-        RETURNING r.name
-    """
-
-
 def _queue_instant_action(robot: Robot, action_type: str) -> InstantAction:
     """Put an instant action in the robot's outbox; the robot's next step sends it and tracks it."""
-    action = _instant_action(robot.name, action_type)
+    action = instant_action(robot.name, action_type)
     action.save(force_insert=True)
     return action
 
 
-def _instant_action(robot: str, action_type: str) -> InstantAction:
+def instant_action(robot: str, action_type: str) -> InstantAction:
     return InstantAction(
         action_id=new_action_id(f"{robot}-{action_type}"), robot_id=robot, action_type=action_type
     )

@@ -11,7 +11,7 @@ from typing import Self
 import redis
 from django.conf import settings
 
-from workers import livestate, steps
+from fleet import livestate
 
 
 def free_port() -> int:
@@ -78,14 +78,13 @@ class PrivateRedis:
 
 @contextmanager
 def live_state_in(url: str) -> Iterator[None]:
-    """This process's live state (`workers.livestate`) and step requests in the Redis at `url`."""
+    """This process's live state (`fleet.livestate`) and step requests in the Redis at `url`."""
     before = settings.REDIS_URL
 
     def switch(to: str) -> None:
         settings.REDIS_URL = to
         livestate._cached_client.cache_clear()
         livestate._thread_local.__dict__.clear()
-        steps._request_script.cache_clear()
 
     switch(url)
     try:

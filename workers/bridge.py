@@ -4,9 +4,8 @@ Per state message it costs one parse and one pipelined Redis script call; the da
 UPDATE per flush period for the robots whose status changed, and a step runs only when something the
 engine cares about changed (`missions.dispatch.state_digest`). A robot that only took the order its last
 step sent needs no step either (`missions.dispatch.takes_order_only`): the flush marks the order accepted,
-so that the sweep does not send it again. The bridge runs the steps itself, on threads of its child processes
-(`workers.stepper.StepProcesses`): a Celery round trip per state would cost more than the step. Several
-bridges may run at
+so that the sweep does not send it again. The bridge runs no step itself: it queues them for the Celery
+step workers (`workers.steps.request_steps`), one request per batch of states. Several bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
 """
@@ -26,21 +25,23 @@ import paho.mqtt.client as mqtt
 from django.conf import settings
 from django.db import DatabaseError, connections
 
+from fleet import livestate
 from fleet.db import drop_broken_connections, jsonb
 from missions.dispatch import StateDigest, state_digest, takes_order_only
+from missions.robot_step import mission_orders_accepted
 from missions.selectors import robots_with_missions
-from missions.services import mission_orders_accepted
 from robots.choices import AgvClass
 from robots.models import Robot
-from robots.services import robot_status_write, robots_came_online
+from robots.status import robot_status_write, robots_came_online
 from vda5050.codec import parse_connection, parse_factsheet, parse_state, parse_visualization
 from vda5050.errors import ProtocolError
 from vda5050.models import ConnectionState, State
 from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_version_of, parse_topic
 from vda5050.topics import shared_subscription as shared_filter
-from workers import livestate, metrics
+from workers import metrics
 from workers.mqtt import new_client
-from workers.stepper import StepProcesses, StepRunner, keep_trying, settle_long_lived_process
+from workers.stepper import keep_trying, settle_long_lived_process
+from workers.steps import request_steps
 
 logger = logging.getLogger(__name__)
 
@@ -119,7 +120,7 @@ class RobotDirectory:
 
 
 class Bridge:
-    def __init__(self, share_group: str = "", steps: StepRunner | StepProcesses | None = None) -> None:
+    def __init__(self, share_group: str = "") -> None:
         self.share_group = share_group
         self.inbox: queue.SimpleQueue[tuple[str, bytes, float]] = (
             queue.SimpleQueue()
@@ -130,7 +131,6 @@ class Bridge:
         self.client = new_client("bridge")
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message
-        self.steps = steps or StepRunner(threads=settings.BRIDGE_STEP_THREADS)
         self._last_flush = time.monotonic()
         self._writes: queue.SimpleQueue[Flush | None] = queue.SimpleQueue()  # to the writer; None: end
         self._writer: threading.Thread | None = None
@@ -158,9 +158,8 @@ class Bridge:
     # --- processing thread ---
 
     def run_forever(self) -> None:
-        self.steps.start()
         keep_trying("loading the robots", self._resume)
-        settle_long_lived_process()  # its step processes, forked earlier, settle their own
+        settle_long_lived_process()
         self.start_status_writer()
         self.client.connect_async(settings.MQTT_HOST, settings.MQTT_PORT, keepalive=30)
         self.client.loop_start()
@@ -179,7 +178,7 @@ class Bridge:
         self.directory.reload()
         # A state stored just before this bridge last stopped may have lost its step: step every robot with
         # work once (a step that finds nothing to do costs only its reads).
-        self.steps.request(robots_with_missions())
+        request_steps(robots_with_missions())
 
     def run_once(self, timeout: float) -> None:
         """Handle whatever arrived (waiting up to `timeout` for something, then up to BATCH_WINDOW_SECONDS
@@ -306,7 +305,7 @@ class Bridge:
                     Robot.objects.filter(name=name).update(online=False)
                     changed.add(name)
         finally:
-            self.steps.request(changed | set(came_online) | disconnected, at=received_at)
+            request_steps(changed | set(came_online) | disconnected, at=received_at)
 
     def _status(self, name: str) -> RobotStatus:
         """The robot's status, now heard from."""

@@ -84,7 +84,7 @@ class Publisher:
         """Queue the message and write it from this thread; False if paho dropped it (no connection).
 
         paho's own network thread writes it only once it has woken up and taken the interpreter lock:
-        in a step process busy with its steps, 1-2 ms later at the median and 12-24 ms at p99 at 2,000
+        in a process busy with its steps, 1-2 ms later at the median and 12-24 ms at p99 at 2,000
         robots (bench/README.md)."""
         info = self._client.publish(topic, payload, qos=qos)
         self._client.write_queued()

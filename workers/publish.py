@@ -1,10 +1,11 @@
-"""Publishing what a step decided, encoded and numbered by the step (`missions.services._wire_messages`)."""
+"""Publishing what a step decided, encoded and numbered by the step (`missions.robot_step._wire_messages`)."""
 
 import redis
 
-from missions.services import WireMessage
+from fleet import livestate
+from missions.robot_step import WireMessage
 from vda5050.topics import RobotAddress, topic_for
-from workers import livestate, metrics
+from workers import metrics
 from workers.mqtt import publisher
 
 

@@ -1,96 +1,59 @@
-"""Requesting dispatch steps: at most one queued step per robot, however many wake-ups arrive.
+"""Requesting dispatch steps: Celery tasks on the `steps` queue, at most one queued step per robot.
 
-A requested step runs on a bridge's step threads while one listens (`take_requested`), else on a Celery
-worker. A Celery task costs the requester and the worker more than the step itself, and at a few hundred
-starts a second the one worker queued them for seconds; a bridge takes requests off a Redis list with
-one round trip per batch. The bridges renew `LISTENING` while they listen, so when none runs the requests
-go to Celery again within `LISTENING_SECONDS`.
+Whoever asks (the bridge for a state that changed what the engine reads, the API for a change of a
+mission or robot, beat for time that passed) goes through `request_steps`. A robot whose step is already
+queued gets no second one; its marker is cleared when its step reads the robot's state
+(`fleet.livestate.state_for_step`), so a change that arrives during the step queues one more. A task
+carries several robots when a bridge batch or a sweep asks for several: Celery's cost per task is of the
+order of a step's own.
 """
 
 import logging
 import threading
 import time
 from collections.abc import Iterable
-from functools import cache
 
 import kombu.exceptions
 import redis
+from django.conf import settings
 
-from workers import livestate
+from fleet import livestate
+from fleet.celery import app
 
 logger = logging.getLogger(__name__)
 
+STEP_TASK = "fleet.step_robots"  # workers.tasks.step_robots, sent by name: the tasks import this module
 # A queued-step marker expires on its own, so a step lost with a killed worker cannot block later ones.
 STEP_MARKER_SECONDS = 10
-REQUESTED = f"{livestate.PREFIX}:step-requests"  # "name at" entries the bridges' step threads take
-LISTENING = f"{livestate.PREFIX}:step-listening"  # exists while a bridge takes requested steps
-LISTENING_SECONDS = 3
-TAKE_COUNT = 500  # requests taken per round trip
-
 # A step request that could not be queued (Redis or the broker away) is tried again this often.
 UNQUEUED_RETRY_SECONDS = 1.0
 
-# Marks each robot's step queued unless it already is; queues the marked ones on REQUESTED while a bridge
-# listens and returns the marked ones left for a Celery worker.
-# KEYS: LISTENING, REQUESTED, then one marker per robot. ARGV: marker TTL, at, names.
-_REQUEST = """
-local to_bridges = redis.call('EXISTS', KEYS[1]) == 1
-local for_workers = {}
-for i = 3, #KEYS do
-  local name = ARGV[i]
-  if redis.call('SET', KEYS[i], 1, 'NX', 'EX', ARGV[1]) then
-    if to_bridges then
-      redis.call('RPUSH', KEYS[2], name .. ' ' .. ARGV[2])
-    else
-      table.insert(for_workers, name)
-    end
-  end
-end
-return for_workers
-"""
-
-
-def step_marker_key(name: str) -> str:
-    return f"{livestate.PREFIX}:step-queued:{name}"
-
-
-@cache
-def _request_script() -> redis.commands.core.Script:
-    return livestate.client().register_script(_REQUEST)
-
 
 def request_steps(names: Iterable[str], *, at: float | None = None) -> None:
-    """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s)."""
-    names = list(names)
+    """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s).
+
+    One Redis round trip marks them, one Celery task per `STEP_TASK_ROBOTS` of them carries them."""
+    names = list(dict.fromkeys(names))
     if not names:
         return
     at = time.time() if at is None else at
-    keys = [LISTENING, REQUESTED, *(step_marker_key(name) for name in names)]
-    for_workers = _request_script()(keys=keys, args=[STEP_MARKER_SECONDS, repr(at), *names])
-    if for_workers:
-        from workers.tasks import step_robot  # tasks import services, which import this module
-
-        for name in for_workers:
-            step_robot.delay(name.decode(), at)
-
-
-def take_requested(timeout: int = 1) -> list[tuple[str, float]]:
-    """Say this process listens, wait up to `timeout` s for requested steps and take them: (robot, at)
-    pairs, their markers cleared (a wake-up after this queues another step)."""
-    pipe = livestate.client().pipeline(transaction=False)
-    pipe.set(LISTENING, 1, ex=LISTENING_SECONDS)
-    pipe.blmpop(timeout, 1, REQUESTED, direction="LEFT", count=TAKE_COUNT)
-    popped = pipe.execute()[1]
-    if not popped:
-        return []
-    requests = [entry.decode().rsplit(" ", 1) for entry in popped[1]]
-    livestate.client().delete(*{step_marker_key(name) for name, _ in requests})
-    return [(name, float(at)) for name, at in requests]
-
-
-def step_started(name: str) -> None:
-    """Called before a step reads anything, so a change arriving during the step queues another one."""
-    livestate.client().delete(step_marker_key(name))
+    marked = livestate.round_trip(
+        [("SET", livestate.step_marker_key(name), 1, "NX", "EX", STEP_MARKER_SECONDS) for name in names]
+    )
+    for reply in marked:
+        if isinstance(reply, Exception):
+            raise reply
+    queued = [name for name, reply in zip(names, marked, strict=True) if reply is not None]
+    if not queued:
+        return
+    size = settings.STEP_TASK_ROBOTS
+    for start in range(0, len(queued), size):
+        try:
+            app.send_task(STEP_TASK, (queued[start : start + size], at), queue=settings.STEP_QUEUE)
+        except Exception:
+            # Unmarked, so that asking again queues them: a marker without its task would block them.
+            livestate.round_trip([("DEL", *(livestate.step_marker_key(name) for name in queued[start:]))])
+            raise
 
 
 def request_steps_or_later(names: Iterable[str]) -> None:

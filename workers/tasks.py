@@ -9,11 +9,12 @@ from celery.signals import worker_ready
 from django.conf import settings
 from django.db import connections
 
+from fleet.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished
-from robots.services import robot_check_heartbeats
-from workers import steps
-from workers.stepper import keep_trying, retry_delay, run_step
+from robots.status import robot_check_heartbeats
+from workers import stepper, steps
+from workers.stepper import keep_trying, retry_delay, run_step, settle_long_lived_process
 
 logger = logging.getLogger(__name__)
 
@@ -21,17 +22,26 @@ logger = logging.getLogger(__name__)
 RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 
 
-@shared_task(name="fleet.step_robot", bind=True, ignore_result=True, max_retries=None)
-def step_robot(self: Task, name: str, requested_at: float | None = None) -> None:
-    """A step that fails (PostgreSQL or Redis away) is retried with backoff until it runs."""
-    try:
-        steps.step_started(name)
-        run_step(name, requested_at=requested_at)
-    except Exception as error:
-        raise self.retry(countdown=retry_delay(self.request.retries + 1), exc=error) from error
+@shared_task(name=steps.STEP_TASK, bind=True, ignore_result=True, max_retries=None)
+def step_robots(self: Task, names: list[str], requested_at: float | None = None) -> None:
+    """Step each robot in turn. Those whose step failed (PostgreSQL or Redis away) are retried together,
+    with backoff, until their steps run: nothing else would step a robot whose state arrived meanwhile."""
+    failed = []
+    for name in names:
+        try:
+            run_step(name, requested_at=requested_at)
+        except Exception:
+            # The traceback once per outage: thousands of robots fail together while PostgreSQL is away.
+            logger.warning("step of robot %s failed", name, exc_info=not failed and not self.request.retries)
+            failed.append(name)
+            drop_broken_connections()  # the next robot's step connects again if this one's connection broke
+    if failed:
+        delay = retry_delay(self.request.retries + 1)
+        logger.warning("steps of %d robots failed; trying them again in %.1f s", len(failed), delay)
+        raise self.retry(args=(failed, requested_at), countdown=delay)
 
 
-@shared_task(name="fleet.run_notify", bind=True, ignore_result=True, max_retries=None)
+@shared_task(name=stepper.NOTIFY_TASK, bind=True, ignore_result=True, max_retries=None)
 def run_notify(self: Task, mission: str, node: str) -> None:
     """POST the notify node's json_data to its url; retry retryable failures with exponential backoff."""
     params = mission_selectors.notify_params(mission=mission, node=node)
@@ -71,6 +81,7 @@ def step_stalled() -> None:
 def _resume_after_restart(**kwargs: object) -> None:
     """A worker killed mid-step loses that step: step every robot with work once at start, as soon as
     PostgreSQL and Redis let it."""
+    settle_long_lived_process()
     threading.Thread(target=_step_robots_with_missions, name="resume", daemon=True).start()
 
 

@@ -2,8 +2,8 @@
 whether the new mission is queued behind others, read after taking the robot's queue lock shared.
 
 A statement's own snapshot is taken before anything in it runs; a query in a volatile function takes a
-new one when it runs, here after the lock. The lock's keys are `missions.services.ROBOT_QUEUE_LOCK_SPACE`
-and the robot's name hashed, as in `missions.services.ROBOT_QUEUE_LOCK_SQL`.
+new one when it runs, here after the lock. The lock's keys are `missions.rows.ROBOT_QUEUE_LOCK_SPACE`
+and the robot's name hashed, as in `missions.rows.ROBOT_QUEUE_LOCK_SQL`.
 """
 
 from django.db import migrations

@@ -5,12 +5,12 @@ import re
 
 import pytest
 
+from fleet import livestate
 from missions.models import Mission
 from tests.api.readme import README_MISSIONS
 from tests.factories import MissionFactory
 from tests.private_redis import PrivateRedis, live_state_in
 from tests.waiting import wait_for
-from workers.steps import step_marker_key
 
 pytestmark = pytest.mark.django_db
 
@@ -468,6 +468,6 @@ def test_a_mission_posted_while_redis_is_away_is_created_and_its_robot_stepped_o
         assert Mission.objects.filter(name="m-redisless", robot="redisless01").exists()
         private.start()
         try:
-            wait_for(lambda: private.client().exists(step_marker_key("redisless01")), timeout=10)
+            wait_for(lambda: private.client().exists(livestate.step_marker_key("redisless01")), timeout=10)
         finally:
             private.kill()

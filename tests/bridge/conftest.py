@@ -7,12 +7,11 @@ from typing import Any
 
 import pytest
 
+from fleet import livestate
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from vda5050.models import ActionStatus
-from workers import livestate
 from workers.bridge import Bridge
-from workers.steps import step_marker_key
 
 
 @pytest.fixture
@@ -28,7 +27,7 @@ def make_robot(db: None) -> Iterator[Callable[..., Robot]]:
     yield make
     for name in names:
         livestate.forget(name)
-        livestate.client().delete(step_marker_key(name))
+        livestate.client().delete(livestate.step_marker_key(name))
 
 
 @pytest.fixture

@@ -3,7 +3,9 @@
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from missions.services import mission_create, robot_step
+from fleet import livestate
+from missions.robot_step import robot_step
+from missions.services import mission_create
 from robots.models import Robot
 from tests.dispatch.builders import robot_state
 from vda5050.codec import encode, header_for
@@ -17,10 +19,7 @@ from vda5050.models import (
     VisualizationContent,
 )
 from vda5050.topics import RobotAddress
-from workers import livestate
 from workers.bridge import Bridge
-from workers.stepper import StepRunner
-from workers.steps import step_marker_key
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
 
@@ -63,25 +62,22 @@ def factsheet_message(robot: Robot | str, factsheet: FactsheetContent) -> tuple[
     return topic(robot, "factsheet"), wire(robot, factsheet)
 
 
-def step_requested(bridge: Bridge, robot: Robot | str) -> bool:
-    """Whether the bridge queued a step for the robot since the last check, which empties its queue (a
-    test's bridge never starts its step threads)."""
+def step_requested(robot: Robot | str) -> bool:
+    """Whether a step was queued for the robot since the last check (its marker), which clears it."""
     name = robot if isinstance(robot, str) else robot.name
-    queued = name in bridge.steps.queued()
-    bridge.steps = StepRunner(threads=bridge.steps.threads)
-    return queued
+    return bool(livestate.client().delete(livestate.step_marker_key(name)))
 
 
-def worker_step_requested(robot: Robot | str) -> bool:
-    """Whether a Celery step was queued for the robot since the marker was last cleared; clears it."""
-    name = robot if isinstance(robot, str) else robot.name
-    return bool(livestate.client().delete(step_marker_key(name)))
+def steps_queued(robots: list[Robot]) -> set[str]:
+    """Those of `robots` whose step is queued (the markers stay)."""
+    markers = livestate.client().mget([livestate.step_marker_key(robot.name) for robot in robots])
+    return {robot.name for robot, marker in zip(robots, markers, strict=True) if marker is not None}
 
 
 def running_order(bridge: Bridge, robot: Robot) -> str:
     """Bring the robot online idle, give it a mission and run the step that sends its order; the orderId."""
     bridge.handle([state_message(robot, header_id=1, at=0.0)])
-    step_requested(bridge, robot)
+    step_requested(robot)
     route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
     mission_create(name=f"{robot.name}-m", prefix=None, spec={"robot": robot.name, "mission_tree": [route]})
     orders = [m.content for m in robot_step(name=robot.name).messages if isinstance(m.content, OrderContent)]

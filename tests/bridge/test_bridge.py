@@ -13,26 +13,28 @@ import pytest
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
+from fleet import livestate
 from missions.models import Mission
 from robots.choices import AgvClass
 from robots.models import InstantAction, Robot
-from robots.services import FACTSHEET_REQUEST, robot_check_heartbeats
+from robots.services import FACTSHEET_REQUEST
+from robots.status import robot_check_heartbeats
 from tests.bridge.messages import (
     connection_message,
     factsheet_message,
     running_order,
     state_message,
     step_requested,
+    steps_queued,
     topic,
     visualization_message,
-    worker_step_requested,
 )
 from tests.database import other_connection
 from tests.dispatch.builders import error
 from tests.vda5050.samples import full_factsheet
 from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
 from workers import bridge as bridge_module
-from workers import livestate, metrics
+from workers import metrics
 from workers.bridge import Bridge
 
 MakeRobot = Callable[..., Robot]
@@ -75,7 +77,7 @@ def test_a_first_state_is_stored_and_brings_the_robot_online_with_a_step_and_a_f
     assert _reload(robot).online is True
     assert livestate.client().sismember(livestate.ONLINE_SET, robot.name)
     assert livestate.last_seen([robot.name])[robot.name] is not None
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
     assert _waiting_factsheet_requests(robot) == 1
 
 
@@ -101,7 +103,7 @@ def test_robots_coming_online_together_are_marked_and_asked_for_factsheets_in_on
 
     assert [_waiting_factsheet_requests(r) for r in (answered, waiting, third)] == [1, 1, 1]
     assert all(_reload(r).online for r in (answered, waiting, third))
-    assert bridge.steps.queued() >= {answered.name, waiting.name, third.name}
+    assert steps_queued([answered, waiting, third]) == {answered.name, waiting.name, third.name}
     statements = [q["sql"].split(" ", 1)[0] for q in queries]
     assert statements.count("INSERT") == 1 and statements.count("UPDATE") == 1
 
@@ -110,18 +112,18 @@ def test_a_repeated_state_with_nothing_new_for_the_engine_requests_no_step(
     bridge: Bridge, robot: Robot
 ) -> None:
     bridge.handle([state_message(robot, header_id=1, at=0.0)])
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
     later = state_message(robot, header_id=2, at=1.0, pose=(4.0, 5.0, 1.0, "map"), velocity=(0.4, 0.0, 0.0))
 
     bridge.handle([later])
 
     assert livestate.latest_state(robot.name).payload == later[1]  # stored all the same: the pose is newer
-    assert not step_requested(bridge, robot)
+    assert not step_requested(robot)
 
 
 def test_a_state_with_changed_order_progress_requests_a_step(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([state_message(robot, header_id=1, order_id="m-n0-r0", node_states=[2, 4])])
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
 
     bridge.handle(
         [
@@ -131,7 +133,7 @@ def test_a_state_with_changed_order_progress_requests_a_step(bridge: Bridge, rob
         ]
     )
 
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
 
 
 @pytest.mark.parametrize(
@@ -147,11 +149,11 @@ def test_a_state_with_anything_else_the_engine_reads_requests_a_step(
     bridge: Bridge, robot: Robot, change: dict
 ) -> None:
     bridge.handle([state_message(robot, header_id=1, battery=80.0)])
-    step_requested(bridge, robot)
+    step_requested(robot)
 
     bridge.handle([state_message(robot, header_id=2, at=1.0, **{"battery": 80.0, **change})])
 
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
 
 
 def test_a_robot_that_only_took_its_order_needs_no_step_and_the_flush_marks_the_order_accepted(
@@ -161,7 +163,7 @@ def test_a_robot_that_only_took_its_order_needs_no_step_and_the_flush_marks_the_
 
     bridge.handle([state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])])
 
-    assert not step_requested(bridge, robot)
+    assert not step_requested(robot)
     assert not Mission.objects.get(robot=robot.name).order_accepted  # written by the flush, not per state
     bridge.flush()
     assert Mission.objects.get(robot=robot.name).order_accepted
@@ -184,7 +186,7 @@ def test_a_robot_that_took_its_order_with_an_error_gets_a_step(bridge: Bridge, r
         [state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2], errors=blocked)]
     )
 
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
 
 
 @pytest.mark.parametrize(
@@ -198,12 +200,12 @@ def test_a_robot_that_took_its_order_with_an_error_gets_a_step(bridge: Bridge, r
 def test_a_stale_state_is_ignored(bridge: Bridge, robot: Robot, header_id: int, at: float) -> None:
     current = state_message(robot, header_id=5, at=0.0)
     bridge.handle([current])
-    step_requested(bridge, robot)
+    step_requested(robot)
 
     bridge.handle([state_message(robot, header_id=header_id, at=at, order_id="late-n0-r0", node_states=[2])])
 
     assert livestate.latest_state(robot.name).payload == current[1]
-    assert not step_requested(bridge, robot)
+    assert not step_requested(robot)
 
 
 def test_a_state_with_the_same_timestamp_and_a_higher_header_id_is_newer(
@@ -256,7 +258,7 @@ def test_states_are_stored_and_robots_come_online_after_redis_lost_the_scripts_a
         payload for _, payload in messages
     ]
     assert all(_reload(robot).online for robot in robots)
-    assert bridge.steps.queued() >= {robot.name for robot in robots}
+    assert steps_queued(robots) == {robot.name for robot in robots}
     assert _counter(metrics.MESSAGES_IN, topic="state") == counted_before + 2
 
 
@@ -268,14 +270,15 @@ def test_a_backlog_is_handled_a_batch_at_a_time_each_batch_requesting_its_steps_
     robots = [make_robot() for _ in range(3)]
     bridge.directory.reload()
     for robot in robots:
+        step_requested(robot)  # the creation's
         bridge.inbox.put((*state_message(robot), time.time()))
 
     bridge.run_once(timeout=0)
 
-    assert bridge.steps.queued() == {robots[0].name, robots[1].name}
+    assert steps_queued(robots) == {robots[0].name, robots[1].name}
     assert livestate.latest_state(robots[2].name).payload is None
     bridge.run_once(timeout=0)
-    assert step_requested(bridge, robots[2])
+    assert step_requested(robots[2])
 
 
 @pytest.mark.django_db(transaction=True)  # run_once closes the connection a test transaction holds
@@ -285,6 +288,7 @@ def test_a_batch_takes_what_arrives_within_its_window_after_its_first_message(
     monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", 0.5)
     first, second = make_robot(), make_robot()
     bridge.directory.reload()
+    step_requested(first), step_requested(second)  # the creations'
     bridge.inbox.put((*state_message(first), time.time()))
     later = threading.Timer(0.05, lambda: bridge.inbox.put((*state_message(second), time.time())))
     later.start()
@@ -292,7 +296,7 @@ def test_a_batch_takes_what_arrives_within_its_window_after_its_first_message(
     bridge.run_once(timeout=0)
 
     later.join()
-    assert bridge.steps.queued() == {first.name, second.name}
+    assert steps_queued([first, second]) == {first.name, second.name}
 
 
 @pytest.mark.django_db(transaction=True)
@@ -323,7 +327,7 @@ def test_a_batch_waits_no_longer_than_its_window_and_not_once_full_or_once_its_f
     bridge.run_once(timeout=0)
 
     assert time.monotonic() - started < 5.0  # a wrong wait here is 10 s or an hour
-    assert bridge.steps.queued() == {robot.name for robot in robots}
+    assert steps_queued(robots) == {robot.name for robot in robots}
 
 
 # --- status written to PostgreSQL ------------------------------------------------------------------------
@@ -491,14 +495,14 @@ def test_a_robot_silent_for_long_is_forgotten_and_written_in_full_when_heard_aga
 def test_visualization_updates_the_pose_without_a_step(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([state_message(robot)])
     bridge.flush()
-    step_requested(bridge, robot)
+    step_requested(robot)
 
     bridge.handle([visualization_message(robot, 6.0, 7.0, -0.5, at=0.5)])
     bridge.flush()
 
     stored = _reload(robot)
     assert (stored.pose_x, stored.pose_y, stored.pose_theta) == (6.0, 7.0, -0.5)
-    assert not step_requested(bridge, robot)
+    assert not step_requested(robot)
 
 
 def test_a_visualization_before_any_state_keeps_the_last_state_time(bridge: Bridge, robot: Robot) -> None:
@@ -523,20 +527,20 @@ def test_a_lost_connection_marks_the_robot_offline_at_once_and_requests_a_step(
     bridge: Bridge, robot: Robot, connection_state: ConnectionState
 ) -> None:
     bridge.handle([state_message(robot)])
-    step_requested(bridge, robot)
+    step_requested(robot)
 
     bridge.handle([connection_message(robot, connection_state)])
 
     assert _reload(robot).online is False
     assert not livestate.client().sismember(livestate.ONLINE_SET, robot.name)
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
 
 
 def test_a_connection_online_message_changes_nothing(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([connection_message(robot, ConnectionState.ONLINE)])
 
     assert _reload(robot).online is False
-    assert not step_requested(bridge, robot)
+    assert not step_requested(robot)
 
 
 def test_a_robot_that_lost_its_connection_comes_back_with_its_next_state(
@@ -544,12 +548,12 @@ def test_a_robot_that_lost_its_connection_comes_back_with_its_next_state(
 ) -> None:
     bridge.handle([state_message(robot, header_id=1)])
     bridge.handle([connection_message(robot, ConnectionState.CONNECTIONBROKEN)])
-    step_requested(bridge, robot)
+    step_requested(robot)
 
     bridge.handle([state_message(robot, header_id=2, at=5.0)])
 
     assert _reload(robot).online is True
-    assert step_requested(bridge, robot)
+    assert step_requested(robot)
 
 
 def test_a_state_after_a_connection_loss_in_the_same_batch_leaves_the_robot_online(
@@ -665,14 +669,14 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
     livestate.mark_seen(pipe, [talking.name], now - 4.0)
     livestate.execute(pipe)
     for robot in (silent, talking, unheard):
-        worker_step_requested(robot)
+        step_requested(robot)
 
     offline = robot_check_heartbeats(now=now)
 
     assert sorted(offline) == sorted([silent.name, unheard.name])
     assert [_reload(r).online for r in (silent, talking, unheard)] == [False, True, False]
     assert not livestate.client().sismember(livestate.ONLINE_SET, silent.name)
-    assert [worker_step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]
+    assert [step_requested(r) for r in (silent, talking, unheard)] == [True, False, True]
 
 
 def test_robot_check_heartbeats_marks_a_robot_heard_but_stored_offline_online(
@@ -687,14 +691,14 @@ def test_robot_check_heartbeats_marks_a_robot_heard_but_stored_offline_online(
     livestate.client().srem(livestate.ONLINE_SET, not_in_set.name)
     InstantAction.objects.filter(robot_id__in=[in_set.name, not_in_set.name]).delete()
     for robot in (in_set, not_in_set):
-        worker_step_requested(robot)
+        step_requested(robot)
 
     changed = robot_check_heartbeats(now=time.time())
 
     assert sorted(changed) == sorted([in_set.name, not_in_set.name])
     assert [_reload(r).online for r in (in_set, not_in_set)] == [True, True]
     assert livestate.client().smismember(livestate.ONLINE_SET, [in_set.name, not_in_set.name]) == [1, 1]
-    assert [worker_step_requested(r) for r in (in_set, not_in_set)] == [True, True]
+    assert [step_requested(r) for r in (in_set, not_in_set)] == [True, True]
     assert InstantAction.objects.filter(robot_id=in_set.name, action_type=FACTSHEET_REQUEST).count() == 1
     assert robot_check_heartbeats(now=time.time()) == []  # nothing left to put right
 

@@ -1,4 +1,4 @@
-"""`missions.services.robot_step`: the dispatch step's I/O wrapper, against the real PostgreSQL and Redis.
+"""`missions.robot_step.robot_step`: the dispatch step's I/O wrapper, against the real PostgreSQL and Redis.
 
 The robot's state is put into Redis by hand, as the bridge stores it; missions are created by the service.
 Outside a test's transaction, as the bridge and the workers step: the step sends its own BEGIN and COMMIT.
@@ -16,10 +16,12 @@ import pytest
 from django.db import connection
 from django.utils import timezone
 
+from fleet import livestate
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.dispatch import state_digest
 from missions.models import Mission
-from missions.services import StepOutcome, mission_cancel, mission_create, mission_delete, robot_step
+from missions.robot_step import StepOutcome, robot_step
+from missions.services import mission_cancel, mission_create, mission_delete
 from robots.choices import RobotState
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, robot_delete
@@ -28,7 +30,6 @@ from tests.dispatch.builders import check_schema, finished, on_order, robot_stat
 from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
 from vda5050.topics import Topic
-from workers import livestate
 from workers.stepper import run_step
 
 pytestmark = pytest.mark.django_db(transaction=True)

@@ -10,8 +10,8 @@ from django.utils import timezone
 from missions.choices import MissionState
 from missions.dispatch import ORDER_ECHO
 from missions.models import Mission
+from missions.robot_step import robot_step
 from missions.selectors import STALLED_MISSION_SECONDS, robots_due_for_step, robots_stalled
-from missions.services import robot_step
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
 from vda5050.models import OrderContent

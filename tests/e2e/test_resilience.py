@@ -1,22 +1,19 @@
 """Reference scenarios `server.py` and `start_order.py`, plus crashes, duplicates and malformed messages."""
 
-import os
-import signal
 import time
 from collections import Counter
-from contextlib import suppress
-from pathlib import Path
 
 import orjson
 import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
 
+from fleet import livestate
 from tests.e2e.conftest import BRIDGE, PYTHON, WORKER, Process
 from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission, wait_robot
 from tests.faults.stack import PrivateBroker
 from tests.waiting import wait_for
-from workers import livestate, metrics
+from workers import metrics
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -173,33 +170,3 @@ def test_metrics_endpoint_exports_fleet_metrics(api, unique, simulated_robot):
     assert 'fleet_missions_finished_total{failure_category="",state="COMPLETED"}' in text
     assert "fleet_step_latency_seconds_bucket" in text
     assert 'fleet_robots_online{online="true"}' in text
-
-
-def _children(pid: int) -> list[int]:
-    tasks = Path(f"/proc/{pid}/task").iterdir()
-    return [int(child) for task in tasks for child in (task / "children").read_text().split()]
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(") ", 1)[1][0] != "Z"
-    except FileNotFoundError:
-        return False
-
-
-def test_a_bridge_killed_alone_leaves_no_step_process_behind(stack):
-    bridge = stack.processes["bridge"]
-    pid = bridge.popen.pid
-    step_processes = wait_for(
-        lambda: len(_children(pid)) == settings.BRIDGE_STEP_PROCESSES and _children(pid),
-        message="the bridge's step processes",
-    )
-    os.kill(pid, signal.SIGKILL)  # the bridge alone, as the OOM killer would, not its process group
-    bridge.popen.wait(timeout=30)
-    try:
-        wait_for(lambda: not any(map(_alive, step_processes)), message="its step processes to exit")
-    finally:
-        for child in step_processes:  # a step process left behind would go on taking this suite's steps
-            with suppress(ProcessLookupError):
-                os.kill(child, signal.SIGKILL)
-        bridge.start()

@@ -131,7 +131,7 @@ class Proc:
                 os.killpg(self.popen.pid, sig)
 
     def kill(self) -> int | None:
-        """SIGKILL the whole group (a bridge's step processes too), then reap the leader; its exit code."""
+        """SIGKILL the whole group (a worker's children too), then reap the leader; its exit code."""
         if self.popen is None:
             return None
         if self.popen.returncode is None:  # not reaped yet: the group id is still ours

@@ -14,10 +14,13 @@ from typing import Any
 import pytest
 from django.db import connection, transaction
 
+import missions.robot_step
 import missions.services
+from fleet import livestate
 from fleet.api import ObjectError
 from missions.models import Mission
-from missions.services import mission_create, robot_step
+from missions.robot_step import robot_step
+from missions.services import mission_create
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.bridge.test_robot_step import orders, put_state
@@ -25,7 +28,6 @@ from tests.database import other_connection
 from tests.dispatch.builders import finished
 from tests.factories import route_node
 from vda5050.models import ActionStatus
-from workers import livestate
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -138,7 +140,7 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_
     robot: Robot, wakes: list[tuple[str, str]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     creations: list[OnItsOwnConnection] = []
-    read_queue = missions.services._current_missions
+    read_queue = missions.robot_step._current_missions
 
     def read_queue_then_create(name: str, *, count: int) -> list[Any]:
         """The step's look at the queue once "last" is done; the creation commits right after it."""
@@ -148,7 +150,7 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_
             assert creations[0].done(timeout=10)
         return upcoming
 
-    monkeypatch.setattr(missions.services, "_current_missions", read_queue_then_create)
+    monkeypatch.setattr(missions.robot_step, "_current_missions", read_queue_then_create)
 
     outcome = robot_step(name=robot.name)
 

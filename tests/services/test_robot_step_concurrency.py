@@ -9,8 +9,10 @@ from datetime import UTC, datetime
 import pytest
 from django.db import connection
 
+from fleet import livestate
 from missions.dispatch import state_digest
-from missions.services import mission_create, robot_step
+from missions.robot_step import robot_step
+from missions.services import mission_create
 from robots.models import Robot
 from robots.services import robot_create
 from vda5050.codec import encode, header_for, parse_state
@@ -23,7 +25,6 @@ from vda5050.models import (
     StateContent,
 )
 from vda5050.topics import RobotAddress
-from workers import livestate
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

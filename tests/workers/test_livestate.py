@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import pytest
 import redis
 
-from workers import livestate
+from fleet import livestate
 
 
 @pytest.fixture

@@ -6,7 +6,8 @@ from typing import Any
 import pytest
 from django.test import override_settings
 
-from workers import livestate, metrics
+from fleet import livestate
+from workers import metrics
 
 SENT: list[tuple[str, dict[str, Any]]] = []
 

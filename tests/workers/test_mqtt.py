@@ -10,11 +10,11 @@ from django.conf import settings
 
 import workers.mqtt
 import workers.publish
-from missions.services import WireMessage
+from fleet import livestate
+from missions.robot_step import WireMessage
 from tests.waiting import wait_for
 from tests.workers.subscriber import subscribed
 from vda5050.topics import RobotAddress, Topic
-from workers import livestate
 from workers.mqtt import Publisher, new_client
 
 
@@ -58,7 +58,7 @@ def publisher() -> Iterator[Publisher]:
 def test_the_publishing_thread_writes_its_message_itself(
     topic: str, received: list[bytes], publisher: Publisher
 ) -> None:
-    """Not paho's network thread, which in a busy step process gets the interpreter lock late."""
+    """Not paho's network thread, which in a process busy with steps gets the interpreter lock late."""
     writers: list[str] = []
     sock_send = publisher._client._sock_send
 
@@ -104,7 +104,7 @@ def test_threads_publishing_at_once_send_every_message_whole_and_each_thread_s_i
 def test_messages_the_broker_connection_dropped_do_not_count_as_published(
     settings, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """They go out again with the robot's next step (`missions.services._wire_messages`)."""
+    """They go out again with the robot's next step (`missions.robot_step._wire_messages`)."""
     with socket.socket() as probe:  # a port nothing listens on: the broker is down
         probe.bind(("127.0.0.1", 0))
         settings.MQTT_PORT = probe.getsockname()[1]

@@ -6,11 +6,11 @@ from collections.abc import Iterator
 
 import pytest
 
-from missions.services import WireMessage
+from fleet import livestate
+from missions.robot_step import WireMessage
 from tests.waiting import wait_for
 from tests.workers.subscriber import subscribed
 from vda5050.topics import RobotAddress, Topic, topic_for
-from workers import livestate
 from workers.publish import publish
 
 

@@ -4,11 +4,10 @@ from django.conf import settings
 from django.core.management.base import BaseCommand, CommandParser
 
 from workers.bridge import Bridge
-from workers.stepper import StepProcesses
 
 
 class Command(BaseCommand):
-    help = "Run the MQTT bridge: robots' VDA 5050 messages to Redis and PostgreSQL, wake dispatch steps."
+    help = "Run the MQTT bridge: robots' VDA 5050 messages to Redis and PostgreSQL, steps queued for workers."
 
     def add_arguments(self, parser: CommandParser) -> None:
         parser.add_argument(
@@ -18,8 +17,4 @@ class Command(BaseCommand):
         )
 
     def handle(self, *args: Any, share_group: str, **options: Any) -> None:
-        steps = StepProcesses(settings.BRIDGE_STEP_PROCESSES, threads=settings.BRIDGE_STEP_THREADS)
-        try:
-            Bridge(share_group=share_group, steps=steps).run_forever()
-        finally:
-            steps.close()
+        Bridge(share_group=share_group).run_forever()

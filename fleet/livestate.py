@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 import redis
 from django.conf import settings
 
-from missions.dispatch import StateDigest
+from missions.dispatch import HeldOrder, StateDigest
 
 PREFIX = "fleet"
 ONLINE_SET = f"{PREFIX}:online"
@@ -224,14 +224,31 @@ class LatestState(NamedTuple):
 
 
 def latest_state(name: str) -> LatestState:
-    """On every step's path: one `round_trip`."""
+    """The robot's latest state. One `round_trip`."""
+    return _latest_state(name, [])
+
+
+def state_for_step(name: str) -> LatestState:
+    """`latest_state`, as a step reads it: in the same round trip the robot's step stops counting as queued
+    (`step_marker_key`), so a change stored from now on asks for another step, while one stored before is
+    in what this returns. On every step's path: one `round_trip`."""
+    return _latest_state(name, [("DEL", step_marker_key(name))])
+
+
+def _latest_state(name: str, before: list[Command]) -> LatestState:
     fields = [_published_field(topic) for topic in PUBLISHED_TOPICS]
-    [(payload, at, *published)] = round_trip([("HMGET", robot_key(name), "state", "at", *fields)])
+    *_, (payload, at, *published) = round_trip([*before, ("HMGET", robot_key(name), "state", "at", *fields)])
     return LatestState(
         payload,
         _arrival(at),
         {topic: int(hid) for topic, hid in zip(PUBLISHED_TOPICS, published, strict=True) if hid is not None},
     )
+
+
+def step_marker_key(name: str) -> str:
+    """Exists while a step of the robot is queued and has not read the robot's state yet (`state_for_step`)
+    (`workers.steps.request_steps` sets it): at most one queued step per robot."""
+    return f"{PREFIX}:step-queued:{name}"
 
 
 # The topics on which the server sends robots messages (vda5050.topics.Topic values).
@@ -255,17 +272,6 @@ def unclaim_published(pipe: redis.client.Pipeline, name: str, topic: str, claime
     """Queue on `pipe`: the messages after `back_to` on `topic` did not go out after all (claimed up to
     `claimed`), so that a later step sends them; unless another step has claimed past them meanwhile."""
     pipe.evalsha(_UNCLAIM_SHA, 1, robot_key(name), _published_field(topic), claimed, back_to)
-
-
-@dataclass(frozen=True)
-class HeldOrder:
-    """The order a robot's latest state holds, whether it is still busy with it, and when that state
-    arrived (None if not recorded)."""
-
-    order_id: str
-    order_update_id: int
-    busy: bool
-    arrived_at: datetime | None
 
 
 def orders_held(names: list[str]) -> dict[str, HeldOrder | None]:

@@ -1,0 +1,446 @@
+"""Stepping a robot: the dispatch step's I/O around the pure engine (`missions.dispatch`).
+
+Under the robot's row lock: load the robot, its running and next missions and its latest live state, run
+the pure step, store what it decided (with the messages, numbered and encoded, in the robot's outbox) and
+hand back what to publish. Also the bridge's write of the orders robots took (`mission_orders_accepted`).
+"""
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from datetime import UTC, datetime, timedelta
+from enum import Enum, auto
+from functools import cache
+from typing import Any, NamedTuple
+
+import orjson
+from django.conf import settings
+from django.db import connection, transaction
+from django.db.backends.utils import CursorWrapper
+from django.db.models import JSONField
+from django.utils import timezone
+
+from fleet import livestate
+from fleet.db import jsonb, pipelined_transaction
+from missions import dispatch
+from missions.choices import MissionState
+from missions.models import Mission
+from missions.rows import (
+    MISSION_FIELDS,
+    ROBOT_QUEUE_LOCK_SQL,
+    mission_columns,
+    mission_db_values,
+    mission_row_delete,
+)
+from robots.models import InstantAction, Robot
+from robots.selectors import robot_unfinished_instant_actions
+from robots.services import robot_rows_delete
+from vda5050.codec import encode, header_for, parse_state
+from vda5050.errors import ProtocolError
+from vda5050.models import State
+from vda5050.topics import RobotAddress, Topic
+
+logger = logging.getLogger(__name__)
+
+# The step's reads are the hot path of the whole system. As plain SQL with only the columns the step needs,
+# read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
+# more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
+# lock what they read until the step commits.
+_FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
+ROBOT_FOR_STEP_SQL = f"""
+    SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
+        r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
+        r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
+        EXISTS (
+            SELECT 1 FROM {InstantAction._meta.db_table} a
+            WHERE a.robot_id = r.name
+              AND (a.status IS NULL OR a.status NOT IN ({_FINAL_ACTION_STATUSES_SQL}))
+        )
+    FROM {Robot._meta.db_table} r WHERE r.name = %s FOR UPDATE OF r
+"""
+MISSION_RECORD_FIELDS = tuple(f.name for f in fields(dispatch.MissionRecord))
+# Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
+MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
+CURRENT_MISSIONS_SQL = f"""
+    SELECT {", ".join(mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
+    WHERE robot = %s AND state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
+    ORDER BY state <> '{MissionState.RUNNING}', queue_position LIMIT %s FOR UPDATE
+"""
+# The fields a step writes; the record's others are the mission's spec.
+STEP_STATUS_FIELDS = (
+    "state",
+    "current_node",
+    "node_status",
+    "task_status",
+    "start_timestamp",
+    "end_timestamp",
+    "failure_reason",
+    "failure_category",
+    "waiting_reason",
+    "order",
+    "order_sent_at",
+    "order_accepted",
+    "attempts",
+)
+
+
+class WireMessage(NamedTuple):
+    """A message for the robot as it goes on the wire: its topic, headerId and encoded bytes."""
+
+    topic: Topic
+    header_id: int
+    payload: bytes
+
+
+@dataclass
+class StepOutcome:
+    """What a step decided that happens outside the database: messages to publish, notify nodes to run."""
+
+    address: RobotAddress | None = None
+    instant_actions_key: str = "actions"
+    messages: list[dispatch.Outgoing] = field(default_factory=list)
+    notifies: list[tuple[str, str]] = field(default_factory=list)
+    finished: list[dispatch.MissionRecord] = field(default_factory=list)
+    rejections: int = 0
+    header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
+    # What to publish, in this order: `messages` encoded, after those of an earlier step that may not
+    # have gone out (`_wire_messages`).
+    wire: list[WireMessage] = field(default_factory=list)
+
+
+def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
+    """Advance robot `name`: its instant actions, its running mission, and the next ones in its queue.
+
+    Runs under the robot's row lock, so steps of one robot are serialized across workers; everything it
+    decides is stored before the caller publishes, so a crash in between only delays a (re)send. The
+    messages' headerIds are drawn in the same transaction, from counters on the robot's row, and the
+    messages kept there until a later step knows they went out (`_wire_messages`). A mission queued while
+    the step ended the robot's last one gets a transaction more (QUEUE_GREW_SQL), at once: a step
+    requested instead would wait behind every other robot's.
+    """
+    outcome = StepOutcome()
+    while _robot_step_transaction(name, now or timezone.now(), outcome):
+        pass
+    return outcome
+
+
+def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> bool:
+    """One transaction of a step, adding to `outcome`; True if the robot needs another one."""
+    first = len(outcome.messages)
+    # Open across the transaction: the look at the queue is read once it has committed, from the reply
+    # that also brings the COMMIT's (reading it inside would cost a round trip of its own).
+    with (
+        connection.cursor() as outbox_cursor,
+        connection.cursor() as lock_cursor,
+        connection.cursor() as queue_cursor,
+    ):
+        with pipelined_transaction():
+            end, wire = _robot_step_locked(name, now, outcome)
+            if end is StepEnd.ROBOT_DELETED:
+                outcome.messages.clear()  # the robot is gone: nothing more is sent to it
+            elif wire is not None:
+                _wire_messages(outbox_cursor, name, wire, outcome, first)
+            if end is StepEnd.QUEUE_RAN_DRY:
+                lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name])
+                queue_cursor.execute(QUEUE_GREW_SQL, [name])
+        if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
+            outcome.header_ids.clear()
+            outcome.wire.clear()
+            transaction.on_commit(lambda: livestate.forget(name))
+            return False
+        return end is StepEnd.QUEUE_RAN_DRY and queue_cursor.fetchone()[0]
+
+
+@dataclass
+class _RobotWire:
+    """What a step transaction read of the robot's messages: the next headerId on each topic, the outbox
+    (the latest messages it was given, as `_wire_messages` stores them), and the headerId last published
+    on each topic as far as Redis knows."""
+
+    next_header_ids: dict[Topic, int]
+    outbox: list[dict[str, Any]]
+    published: dict[str, int]
+
+
+# Messages kept in a robot's outbox at most: those of its last steps that may not have gone out.
+OUTBOX_LIMIT = 16
+OUTBOX_SQL = f"""
+    UPDATE {Robot._meta.db_table}
+    SET next_order_header_id = %s, next_instant_actions_header_id = %s, outbox = %s WHERE name = %s
+"""
+
+
+def _wire_messages(
+    cursor: CursorWrapper, name: str, wire: _RobotWire, outcome: StepOutcome, first: int
+) -> None:
+    """Number and encode the transaction's new messages, keep them in the robot's outbox with those of its
+    earlier steps that Redis does not know to be published, and put all of those on `outcome.wire`.
+
+    A process killed between a step's COMMIT and its publish would otherwise leave its headerIds unsent
+    for ever: the next step sends them first, identical to the byte. One whose publish is only in flight
+    sends it itself: the publisher claims each headerId in Redis first (`workers.publish`), so a message
+    goes out once, and, only when Redis lost the claims, at most twice, identically.
+    """
+    unsent = [entry for entry in wire.outbox if entry["header_id"] > wire.published.get(entry["topic"], -1)]
+    new = []
+    stamped_at = datetime.now(UTC)
+    assert outcome.address is not None  # set by the step that read `wire`
+    for message in outcome.messages[first:]:
+        header_id = wire.next_header_ids[message.topic]
+        wire.next_header_ids[message.topic] += 1
+        header = header_for(outcome.address, header_id=header_id, at=stamped_at)
+        payload = encode(message.content, header, instant_actions_key=outcome.instant_actions_key)
+        new.append({"topic": message.topic.value, "header_id": header_id, "payload": payload.decode()})
+        outcome.header_ids.append(header_id)
+    if new:
+        cursor.execute(
+            OUTBOX_SQL,
+            [
+                wire.next_header_ids[Topic.ORDER],
+                wire.next_header_ids[Topic.INSTANT_ACTIONS],
+                jsonb((unsent + new)[-OUTBOX_LIMIT:]),
+                name,
+            ],
+        )
+    queued = {(message.topic, message.header_id) for message in outcome.wire}
+    for entry in unsent + new:
+        topic = Topic(entry["topic"])
+        if (topic, entry["header_id"]) not in queued:  # a step's second transaction reads the first's
+            outcome.wire.append(WireMessage(topic, entry["header_id"], entry["payload"].encode()))
+
+
+class StepEnd(Enum):
+    """What a step's transaction left behind, for what the step does before and after its COMMIT."""
+
+    SETTLED = auto()  # a mission runs or waits, the robot had none, or there is no robot of that name
+    QUEUE_RAN_DRY = auto()  # the step ended the robot's last mission: its queue was empty when last read
+    ROBOT_DELETED = auto()
+
+
+# Whether the robot has a queued mission, read under the robot's queue lock (ROBOT_QUEUE_LOCK_SQL) by a step
+# that ended the robot's last mission.
+QUEUE_GREW_SQL = f"""
+    SELECT EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} WHERE robot = %s AND state = '{MissionState.PENDING}'
+    )
+"""
+
+
+def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[StepEnd, _RobotWire | None]:
+    """The step inside its transaction, from taking the robot's row lock on, adding to `outcome`; also
+    what it read of the robot's messages (None if there is no robot of that name)."""
+    with connection.cursor() as robot_cursor, connection.cursor() as missions_cursor:
+        robot_cursor.execute(ROBOT_FOR_STEP_SQL, [name])
+        # The running mission and the next queued one: a step that ends a mission usually starts the next.
+        missions_cursor.execute(CURRENT_MISSIONS_SQL, [name, 2])
+        row = robot_cursor.fetchone()
+        upcoming = _mission_records(missions_cursor.fetchall())
+    if row is None:
+        return StepEnd.SETTLED, None
+    (
+        lifecycle,
+        robot_state,
+        online,
+        critical_level,
+        switch_teleop,
+        actions_key,
+        next_order_header_id,
+        next_instant_actions_header_id,
+        outbox,
+        *address,
+        has_actions,
+    ) = row
+    outcome.address = RobotAddress(*address)
+    outcome.instant_actions_key = actions_key
+    state, state_arrived_at, published = _live_state(name)
+    wire = _RobotWire(
+        {Topic.ORDER: next_order_header_id, Topic.INSTANT_ACTIONS: next_instant_actions_header_id},
+        orjson.loads(outbox) if outbox is not None else [],
+        published,
+    )
+    actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
+    view = dispatch.RobotView(
+        name=name,
+        lifecycle=lifecycle,
+        state=robot_state,
+        online=online,
+        battery_critical_level=critical_level,
+        switch_teleop=switch_teleop,
+    )
+    ended_a_mission = False
+    while True:
+        mission = upcoming.pop(0) if upcoming else None
+        result = dispatch.step(
+            now=now,
+            robot=view,
+            state=state,
+            state_arrived_at=state_arrived_at,
+            mission=mission,
+            actions=actions,
+            settings=dispatch_settings(),
+        )
+        _store_actions(name, actions, result.actions)
+        actions = [a for a in result.actions if a.status not in dispatch.FINAL]
+        outcome.messages.extend(result.messages)
+        outcome.rejections += int(result.rejected)
+        view = replace(view, state=result.robot_state)
+        if mission is not None and result.mission is not None:
+            _store_mission(mission, result.mission)
+            if result.notify is not None:
+                outcome.notifies.append((mission.name, result.notify))
+            if result.mission.done:
+                outcome.finished.append(result.mission)
+            if result.delete_mission:
+                mission_row_delete(mission.name)
+        if result.delete_robot:
+            robot_rows_delete(name)
+            return StepEnd.ROBOT_DELETED, wire
+        if mission is None or not (result.mission.done or result.delete_mission):
+            break
+        ended_a_mission = True
+        upcoming = upcoming or _current_missions(name, count=2)
+    if view.state != robot_state:
+        Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
+    return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
+
+
+# A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's
+# sweep from sending the order again. It holds the order at this update or a later one. Running missions
+# that another transaction holds (a step, a service) are skipped, not waited for.
+ACCEPT_ORDERS_SQL = f"""
+    WITH taken AS (
+        SELECT * FROM unnest(%s::varchar[], %s::text[], %s::bigint[]) AS t(robot, order_id, order_update_id)
+    ), free AS (
+        SELECT name FROM {Mission._meta.db_table}
+        WHERE robot IN (SELECT robot FROM taken) AND state = '{MissionState.RUNNING}' AND NOT order_accepted
+        FOR NO KEY UPDATE SKIP LOCKED
+    )
+    UPDATE {Mission._meta.db_table} AS m SET order_accepted = true, updated_at = %s
+    FROM taken AS t
+    WHERE m.name IN (SELECT name FROM free) AND m.robot = t.robot
+      AND m."order"->>'orderId' = t.order_id AND (m."order"->>'orderUpdateId')::bigint <= t.order_update_id
+"""
+
+
+def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
+    """Mark accepted the running missions' orders that robots took: robot -> (orderId, orderUpdateId).
+
+    One statement, whatever the number of robots, so that it holds the rows it locks only while it runs. A
+    mission a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
+    the steps of those robots queued behind the step it waited for. A skipped acceptance costs nothing:
+    the sweep resends an order only on a state that does not hold it. An order that is not the mission's
+    current one (a later update is already out, or the order came from elsewhere) matches nothing.
+    """
+    robots = list(orders)
+    with connection.cursor() as cursor:
+        cursor.execute(
+            ACCEPT_ORDERS_SQL,
+            [
+                robots,
+                [orders[robot][0] for robot in robots],
+                [orders[robot][1] for robot in robots],
+                timezone.now(),
+            ],
+        )
+
+
+def _current_missions(robot: str, *, count: int) -> list[dispatch.MissionRecord]:
+    """The robot's RUNNING mission, then its queue in FIFO order, locked."""
+    with connection.cursor() as cursor:
+        cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
+        return _mission_records(cursor.fetchall())
+
+
+def _mission_records(rows: list[tuple[Any, ...]]) -> list[dispatch.MissionRecord]:
+    """CURRENT_MISSIONS_SQL's rows as the engine's records."""
+    return [
+        dispatch.MissionRecord(
+            *(
+                orjson.loads(value) if is_json and value is not None else value
+                for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
+            )
+        )
+        for row in rows
+    ]
+
+
+def dispatch_settings() -> dispatch.DispatchSettings:
+    return dispatch.DispatchSettings(
+        order_resend=timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS),
+        instant_action_resend=timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS),
+        start_deviation_xy=settings.DISPATCH_START_NODE_DEVIATION,
+    )
+
+
+def _live_state(name: str) -> tuple[State | None, datetime | None, dict[str, int]]:
+    """The robot's latest state, when it arrived, and the headerIds last published to it (per topic)."""
+    payload, arrived_at, published = livestate.state_for_step(name)
+    if payload is None:
+        return None, None, published
+    try:
+        return parse_state(payload), arrived_at, published
+    except ProtocolError:  # the bridge only stores states it could parse; a stale format is not fatal
+        logger.warning("stored state of robot %s no longer parses", name)
+        return None, None, published
+
+
+def _store_mission(before: dispatch.MissionRecord, after: dispatch.MissionRecord) -> None:
+    """Write the fields the step changed, in one UPDATE."""
+    changed = {
+        name: getattr(after, name)
+        for name in STEP_STATUS_FIELDS
+        if getattr(before, name) != getattr(after, name)
+    }
+    if not changed:
+        return
+    values = {**changed, "updated_at": timezone.now()}
+    with connection.cursor() as cursor:
+        cursor.execute(_mission_update_sql(tuple(values)), [*mission_db_values(values), after.name])
+
+
+@cache
+def _mission_update_sql(columns: tuple[str, ...]) -> str:
+    assignments = ", ".join(f"{column} = %s" for column in mission_columns(columns))
+    return f"UPDATE {Mission._meta.db_table} SET {assignments} WHERE name = %s"
+
+
+def _action_record(action: InstantAction) -> dispatch.ActionRecord:
+    return dispatch.ActionRecord(**{f.name: getattr(action, f.name) for f in fields(dispatch.ActionRecord)})
+
+
+# The step's writes are plain SQL: the ORM's bulk writes and deletes open transaction blocks of their own,
+# which `pipelined_transaction` does not allow.
+UPSERT_ACTIONS_SQL = f"""
+    INSERT INTO {InstantAction._meta.db_table}
+        (action_id, robot_id, action_type, mission, status, sent_at, send_count, created_at)
+    SELECT *, %s FROM unnest(
+        %s::varchar[], %s::varchar[], %s::varchar[], %s::varchar[], %s::varchar[], %s::timestamptz[],
+        %s::integer[]
+    )
+    ON CONFLICT (action_id) DO UPDATE
+    SET status = EXCLUDED.status, sent_at = EXCLUDED.sent_at, send_count = EXCLUDED.send_count
+"""
+
+
+def _store_actions(
+    robot: str, before: list[dispatch.ActionRecord], after: list[dispatch.ActionRecord]
+) -> None:
+    """Insert new instant actions and save the ones whose status or send time changed, in one statement."""
+    known = {a.action_id: a for a in before}
+    changed = [a for a in after if known.get(a.action_id) != a]
+    if not changed:
+        return
+    with connection.cursor() as cursor:
+        cursor.execute(
+            UPSERT_ACTIONS_SQL,
+            [
+                timezone.now(),
+                [a.action_id for a in changed],
+                [robot] * len(changed),
+                [a.action_type for a in changed],
+                [a.mission for a in changed],
+                [a.status for a in changed],
+                [a.sent_at for a in changed],
+                [a.send_count for a in changed],
+            ],
+        )

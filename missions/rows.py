@@ -1,0 +1,51 @@
+"""Missions as plain SQL rows, for the hot writes: the API's insert, the step's reads and updates.
+
+As plain SQL they skip the ORM's query compiler, which costs more than the queries themselves.
+"""
+
+from collections.abc import Mapping
+from typing import Any
+
+from django.db import connection
+from django.db.models import JSONField
+
+from fleet.db import jsonb
+from missions.models import Mission
+
+MISSION_FIELDS = {field.name: field for field in Mission._meta.concrete_fields}
+MISSION_JSON_FIELDS = frozenset(name for name, f in MISSION_FIELDS.items() if isinstance(f, JSONField))
+
+
+def mission_db_values(values: Mapping[str, Any]) -> list[Any]:
+    """Field values (by field name) as the database takes them, JSON adapted, in order."""
+    return [
+        jsonb(value)
+        if name in MISSION_JSON_FIELDS and value is not None
+        else MISSION_FIELDS[name].get_db_prep_save(value, connection)
+        for name, value in values.items()
+    ]
+
+
+def mission_columns(names: tuple[str, ...]) -> list[str]:
+    return [connection.ops.quote_name(MISSION_FIELDS[name].column) for name in names]
+
+
+# A step may end the robot's last mission without seeing a mission created meanwhile (it read the queue
+# before the INSERT committed), while the INSERT saw the ending mission still RUNNING. The robot's queue lock
+# (an advisory lock, released when the transaction ends) settles which of the two starts it. The creation
+# takes the lock shared before it looks at the queue and holds it to its commit; a step that ended the
+# robot's last mission takes it exclusively before its COMMIT, then looks at the queue again
+# (QUEUE_GREW_SQL) and steps again if a mission came. So the step waits for a creation in flight and sees
+# its mission (the creation, looking before the step's commit, saw the ending mission and did not wake the
+# robot), and a creation that waited for the step sees the step's commit and wakes the robot (the step's
+# look, before that creation committed, did not see it). Either way one of them starts the mission, never
+# both. Creations do not wait for each other, nor for anything a step holds.
+ROBOT_QUEUE_LOCK_SPACE = 5050  # the lock's first key; the second is the robot's name hashed
+ROBOT_QUEUE_LOCK_SQL = f"SELECT pg_advisory_xact_lock({ROBOT_QUEUE_LOCK_SPACE}, hashtext(%s))"
+
+MISSION_DELETE_SQL = f"DELETE FROM {Mission._meta.db_table} WHERE name = %s"
+
+
+def mission_row_delete(name: str) -> None:
+    with connection.cursor() as cursor:
+        cursor.execute(MISSION_DELETE_SQL, [name])
