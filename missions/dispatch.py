@@ -32,6 +32,7 @@ from vda5050.topics import Topic
 
 PAUSE_ORDER = "pause_order"  # the reference's action that hands the robot to teleoperation
 FINAL = vda_state.FINAL_ACTION_STATUSES  # an instant action in one of these is no longer tracked
+STARTED = frozenset({ActionStatus.INITIALIZING, ActionStatus.RUNNING, ActionStatus.PAUSED})
 ORDER_KINDS = frozenset({NodeKind.ROUTE, NodeKind.MOVE, NodeKind.ACTION})
 
 TIMED_OUT = "Mission timed out"
@@ -706,7 +707,7 @@ class StateDigest:
     """What steps read in a robot's state, for the bridge to tell which states need a step.
 
     `full` changes with anything a step reads. `events` with what needs a step whatever order the robot
-    holds: finished actions, errors, operating mode, charging, battery in whole percent, pause. Pose and
+    holds: finished and started actions, errors, operating mode, charging, battery in whole percent, pause. Pose and
     other high-rate fields are left out of both on purpose: a moving robot must not cost a step per state
     message. Battery counts in whole percent because it gates queued missions at the critical level.
     """
@@ -736,6 +737,9 @@ def state_digest(state: State) -> StateDigest:
         ",".join(
             f"{a.action_id}={a.action_status.value}" for a in state.action_states if a.action_status in FINAL
         ),
+        # Started: a state that takes an order whose action is already under way (a pause_order the robot
+        # starts where it stands) needs its step, which puts the robot in TELEOP.
+        ",".join(a.action_id for a in state.action_states if a.action_status in STARTED),
         ",".join(
             f"{e.error_type}/{e.error_level.value}/"
             + "+".join(f"{r.reference_key}:{r.reference_value}" for r in e.error_references or ())

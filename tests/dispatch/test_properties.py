@@ -359,6 +359,11 @@ def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: St
         ),
         pytest.param(
             IDLE_AFTER_M0,
+            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("hold", ActionStatus.RUNNING)]),
+            id="taking-with-its-action-already-running",
+        ),
+        pytest.param(
+            IDLE_AFTER_M0,
             robot_state(order_id="m1-n0-r0", last_node_sequence_id=2),
             id="taking-and-finishing-at-once",
         ),
