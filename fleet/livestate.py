@@ -165,9 +165,9 @@ def round_trip(commands: list[Command]) -> list[Any]:
     """Send `commands` at once on this thread's connection and read their replies, an error reply in its
     place.
 
-    redis-py 8's pipeline and pool spend about 30 µs of CPU per round trip on their bookkeeping (retry
-    closures, observability hooks, the pool's checkout with its readiness poll, response callbacks), as
-    much as the round trip's own work; the bridge and the steps make ~1,000 a second at 2,000 robots. A
+    redis-py 8's pipeline and pool spend as much CPU per round trip on their bookkeeping (retry closures,
+    observability hooks, the pool's checkout with its readiness poll, response callbacks) as the round
+    trip's own work (bench/README.md), and the bridge and every step make round trips all the time. A
     connection error is tried once more on a new connection, as redis-py would (a Redis restart leaves
     connections dead)."""
     connection = _thread_connection()

@@ -13,7 +13,7 @@ application = get_wsgi_application()
 
 # What is loaded now lives as long as the worker: the URLconf imports the views and serializers (else the
 # first request would), then everything is frozen out of the garbage collector's sight. Unfrozen, the full
-# collections walked all of Django for up to 230 ms, every few seconds under load, and stopped every
-# request the worker was serving meanwhile (bench/README.md).
+# collections walked all of Django every few seconds under load and stopped every request the worker was
+# serving meanwhile (bench/README.md has how long).
 import_module(settings.ROOT_URLCONF)
 gc.freeze()

@@ -707,9 +707,9 @@ class StateDigest:
     """What steps read in a robot's state, for the bridge to tell which states need a step.
 
     `full` changes with anything a step reads. `events` with what needs a step whatever order the robot
-    holds: finished and started actions, errors, operating mode, charging, battery in whole percent, pause. Pose and
-    other high-rate fields are left out of both on purpose: a moving robot must not cost a step per state
-    message. Battery counts in whole percent because it gates queued missions at the critical level.
+    holds: finished and started actions, errors, operating mode, charging, battery in whole percent,
+    pause. Pose and other high-rate fields are left out of both on purpose: a moving robot must not cost a
+    step per state message. Battery counts in whole percent because it gates queued missions at the critical level.
     """
 
     full: str

@@ -51,8 +51,8 @@ SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUA
 # that needs a step waited behind hundreds of periodic ones (bench/README.md, "What changed": N=2000).
 BATCH_LIMIT = 100
 # A batch also takes what arrives this long after its first message. A batch's Redis round trip costs the
-# processing thread about four times a state's own work, and at 2,000 robots its CPU per state put the
-# batches at 2-3 states: a state now waits up to 2 ms more, and the machine has that CPU for the steps
+# processing thread several times a state's own work, and without the window a busy fleet's batches held
+# only a few states: a state now waits up to the window more, and the machine has that CPU for the steps
 # (bench/README.md, "What changed").
 BATCH_WINDOW_SECONDS = 0.002
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
@@ -364,7 +364,7 @@ class Bridge:
 
     def start_status_writer(self) -> None:
         """The thread that writes the flushes `run_once` collects, so that the processing thread goes on
-        handling states while a flush waits for PostgreSQL (it stopped them for 20-40 ms every second)."""
+        handling states while a flush waits for PostgreSQL (it stopped them for every write)."""
         self._writer = threading.Thread(target=self._write_forever, name="status-writer", daemon=True)
         self._writer.start()
 

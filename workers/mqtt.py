@@ -83,9 +83,8 @@ class Publisher:
     def publish(self, topic: str, payload: bytes, *, qos: int = 0) -> bool:
         """Queue the message and write it from this thread; False if paho dropped it (no connection).
 
-        paho's own network thread writes it only once it has woken up and taken the interpreter lock:
-        in a process busy with its steps, 1-2 ms later at the median and 12-24 ms at p99 at 2,000
-        robots (bench/README.md)."""
+        paho's own network thread writes it only once it has woken up and taken the interpreter lock,
+        which in a process busy with steps is milliseconds later (bench/README.md has the figures)."""
         info = self._client.publish(topic, payload, qos=qos)
         self._client.write_queued()
         return info.rc == mqtt.MQTT_ERR_SUCCESS

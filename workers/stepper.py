@@ -56,8 +56,9 @@ def settle_long_lived_process() -> None:
     """Set up a long-lived bridge or step-worker process once its startup is done.
 
     What is loaded by then (Django, the apps, the robot directory) lives as long as the process: frozen, it
-    is out of the garbage collector's sight, whose full collections walked it and stopped the process for
-    50-170 ms every few seconds. The short switch interval is for the threads that wait on round trips.
+    is out of the garbage collector's sight, whose full collections walked it and stopped the process
+    every few seconds (bench/README.md has how long). The short switch interval is for the threads that
+    wait on round trips.
     """
     gc.freeze()
     sys.setswitchinterval(SWITCH_INTERVAL_SECONDS)
