@@ -709,7 +709,8 @@ class StateDigest:
     `full` changes with anything a step reads. `events` with what needs a step whatever order the robot
     holds: finished and started actions, errors, operating mode, charging, battery in whole percent,
     pause. Pose and other high-rate fields are left out of both on purpose: a moving robot must not cost a
-    step per state message. Battery counts in whole percent because it gates queued missions at the critical level.
+    step per state message. Battery counts in whole percent because it gates queued missions at the
+    critical level.
     """
 
     full: str
