@@ -22,6 +22,7 @@ run: database
 	$(VENV)/bin/honcho start -f deploy/Procfile
 
 test: install
+	$(VENV)/bin/ruff check .
 	$(PY) deploy/ensure_database.py
 	$(PY) -m pytest $(PYTEST_ARGS)
 
