@@ -179,9 +179,15 @@ def _wire_messages(
     A process killed between a step's COMMIT and its publish would otherwise leave its headerIds unsent
     for ever: the next step sends them first, identical to the byte. One whose publish is only in flight
     sends it itself: the publisher claims each headerId in Redis first (`workers.publish`), so a message
-    goes out once, and, only when Redis lost the claims, at most twice, identically.
+    goes out once. Only marks that Redis still holds say what was not sent: once Redis lost the robot's
+    marks (a restart), the outbox is taken as sent, since sending its messages again could hand the robot
+    an order its mission has long moved past.
     """
-    unsent = [entry for entry in wire.outbox if entry["header_id"] > wire.published.get(entry["topic"], -1)]
+    unsent = [
+        entry
+        for entry in wire.outbox
+        if wire.published and entry["header_id"] > wire.published.get(entry["topic"], -1)
+    ]
     new = []
     stamped_at = datetime.now(UTC)
     assert outcome.address is not None  # set by the step that read `wire`

@@ -189,18 +189,22 @@ def test_what_a_step_killed_before_publishing_decided_goes_out_first_with_the_ne
     robot: Robot,
 ) -> None:
     """Its process died between COMMIT and publish: its headerIds must not be left out on the wire."""
+    InstantAction.objects.filter(robot=robot).update(status=None, sent_at=None)
+    run_step(robot.name)  # the robot's factsheet request goes out: Redis marks what the robot was sent
     create("m1", robot)
     killed = step(robot)  # committed, never published
     put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
 
     resend = step(robot, after=60.0)
 
-    assert sorted(on_the_wire(killed)) == [(Topic.INSTANT_ACTIONS, 0), (Topic.ORDER, 0)]
-    assert resend.wire[:2] == killed.wire  # to the byte
-    assert sorted(on_the_wire(resend)[2:]) == [(Topic.INSTANT_ACTIONS, 1), (Topic.ORDER, 1)]
+    assert on_the_wire(killed) == [(Topic.ORDER, 0)]
+    assert resend.wire[:1] == killed.wire  # to the byte
+    assert (Topic.ORDER, 1) in on_the_wire(resend)[1:]
 
 
-def test_what_went_out_is_not_sent_again_unless_redis_lost_the_mark(robot: Robot) -> None:
+def test_what_went_out_is_not_sent_again_even_when_redis_lost_the_marks(robot: Robot) -> None:
+    """Sending the outbox again after a Redis restart could hand the robot an order its mission has moved
+    past (the fault suite saw a first leaf's order arrive after the second's)."""
     create("m1", robot)
     run_step(robot.name)  # publishes, and marks what it published; now, not at NOW
     sent_at = timezone.now()
@@ -215,9 +219,7 @@ def test_what_went_out_is_not_sent_again_unless_redis_lost_the_mark(robot: Robot
     livestate.client().delete(livestate.robot_key(robot.name))  # a Redis restart
     outcome = resend(120)
 
-    # The last step's messages again, as they were (they may not have gone out), then the new ones.
-    assert sorted(on_the_wire(outcome)[:2]) == [(Topic.INSTANT_ACTIONS, 1), (Topic.ORDER, 1)]
-    assert sorted(on_the_wire(outcome)[2:]) == [(Topic.INSTANT_ACTIONS, 2), (Topic.ORDER, 2)]
+    assert sorted(on_the_wire(outcome)) == [(Topic.INSTANT_ACTIONS, 2), (Topic.ORDER, 2)]  # only the new
 
 
 def test_an_offline_robot_keeps_its_mission_queued_and_gets_nothing(robot: Robot) -> None:
