@@ -179,15 +179,11 @@ def _wire_messages(
     A process killed between a step's COMMIT and its publish would otherwise leave its headerIds unsent
     for ever: the next step sends them first, identical to the byte. One whose publish is only in flight
     sends it itself: the publisher claims each headerId in Redis first (`workers.publish`), so a message
-    goes out once. Only marks that Redis still holds say what was not sent: once Redis lost the robot's
-    marks (a restart), the outbox is taken as sent, since sending its messages again could hand the robot
-    an order its mission has long moved past.
+    goes out once. Once Redis lost the robot's marks (a restart), only the newest message on each topic is
+    sent again: an older one could hand the robot an order its mission has moved past, while the newest is
+    still what the robot should have (a duplicate of it, if it went out, is identical).
     """
-    unsent = [
-        entry
-        for entry in wire.outbox
-        if wire.published and entry["header_id"] > wire.published.get(entry["topic"], -1)
-    ]
+    unsent = _maybe_unsent(wire)
     new = []
     stamped_at = datetime.now(UTC)
     assert outcome.address is not None  # set by the step that read `wire`
@@ -213,6 +209,14 @@ def _wire_messages(
         topic = Topic(entry["topic"])
         if (topic, entry["header_id"]) not in queued:  # a step's second transaction reads the first's
             outcome.wire.append(WireMessage(topic, entry["header_id"], entry["payload"].encode()))
+
+
+def _maybe_unsent(wire: _RobotWire) -> list[dict[str, Any]]:
+    """The outbox's messages that may not have gone out (`_wire_messages`), oldest first."""
+    if wire.published:
+        return [e for e in wire.outbox if e["header_id"] > wire.published.get(e["topic"], -1)]
+    newest = {entry["topic"]: entry for entry in wire.outbox}  # the outbox is in headerId order per topic
+    return [entry for entry in wire.outbox if newest[entry["topic"]] is entry]
 
 
 class StepEnd(Enum):
