@@ -1,7 +1,6 @@
 """The Celery application shared by workers and beat (`celery -A fleet worker|beat`)."""
 
 import functools
-import logging
 import os
 from collections.abc import Callable
 from typing import Any
@@ -12,8 +11,6 @@ from celery import Celery
 from celery.signals import task_prerun
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
-
-logger = logging.getLogger(__name__)
 
 app = Celery("fleet")
 app.config_from_object("django.conf:settings", namespace="CELERY")
@@ -29,25 +26,23 @@ def _replace_broken_connections(**kwargs: Any) -> None:
     drop_broken_connections()
 
 
-def _restore_unacked_or_leave_it(restore: Callable[..., Any]) -> Callable[..., Any]:
-    """kombu 5.7's Redis transport restores a channel's unacknowledged tasks when the channel closes, also
-    after Redis dropped the connection, when the connection it would restore them on is already gone: the
-    AttributeError ('NoneType' object has no attribute 'hostname') then ends the worker ("Unrecoverable
-    error", seen in the fault suite when Redis was killed while steps were in flight). Those tasks stay in
-    Redis's unacked set, and kombu delivers them again after the visibility timeout, so leaving them is safe.
-    """
+def _connparams_or_connection_error(connparams: Callable[..., Any]) -> Callable[..., Any]:
+    """kombu 5.7's Redis transport, after Redis dropped the connection, still acts on channels whose
+    connection it has torn down (restoring unacknowledged tasks when a channel closes, rejecting a message)
+    and fails with an AttributeError ('NoneType' object has no attribute 'hostname' / 'client') that ends
+    the worker ("Unrecoverable error", seen in the fault suite when Redis was killed while steps were in
+    flight). As a connection error the same failure is one kombu handles: it reconnects, and tasks left
+    unacknowledged are delivered again after the visibility timeout."""
 
-    @functools.wraps(restore)
-    def restore_or_leave(self: Any, client: Any = None) -> Any:
-        try:
-            return restore(self, client)
-        except (AttributeError, redis.RedisError, OSError) as error:
-            logger.warning("unacknowledged tasks left to the visibility timeout (%r)", error)
-            return None
+    @functools.wraps(connparams)
+    def connparams_or_connection_error(self: Any, asynchronous: bool = False) -> Any:
+        if self.connection is None or self.connection.client is None:
+            raise redis.exceptions.ConnectionError("the broker connection is gone")
+        return connparams(self, asynchronous)
 
-    return restore_or_leave
+    return connparams_or_connection_error
 
 
-kombu.transport.redis.QoS.restore_unacked = _restore_unacked_or_leave_it(
-    kombu.transport.redis.QoS.restore_unacked
+kombu.transport.redis.Channel._connparams = _connparams_or_connection_error(
+    kombu.transport.redis.Channel._connparams
 )

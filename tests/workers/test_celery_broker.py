@@ -2,26 +2,29 @@
 
 import kombu
 import pytest
+import redis
 from django.conf import settings
 
 import fleet.celery  # noqa: F401  (installs the workaround tested here)
 
 
-def test_unacknowledged_tasks_of_a_channel_whose_connection_is_gone_are_left_to_the_visibility_timeout(
-    caplog: pytest.LogCaptureFixture,
-) -> None:
-    """kombu restores them when the channel closes, on a connection that Redis dropped and kombu tore
-    down: unpatched, the AttributeError ended the worker."""
+@pytest.mark.parametrize("torn_down", ["client", "connection"])
+def test_a_channel_whose_connection_is_gone_fails_as_a_connection_error(torn_down: str) -> None:
+    """kombu restores unacknowledged tasks and rejects messages on channels whose connection Redis dropped
+    and kombu tore down: unpatched, an AttributeError ended the worker; a connection error is one kombu
+    handles (it reconnects)."""
     with kombu.Connection(settings.CELERY_BROKER_URL) as connection:
         channel = connection.default_channel
         channel.qos._delivered["an-unacknowledged-task"] = None
         transport, client = channel.connection, channel.connection.client
         channel._pool = None
-        transport.client = None  # what the dropped connection left behind
+        if torn_down == "client":
+            transport.client = None
+        else:
+            channel.connection = None
         try:
-            channel.qos.restore_unacked()
+            with pytest.raises(redis.exceptions.ConnectionError, match="the broker connection is gone"):
+                channel.qos.restore_unacked()
         finally:
-            transport.client = client
+            channel.connection, transport.client = transport, client
             channel.qos._delivered.clear()
-
-    assert "unacknowledged tasks left to the visibility timeout" in caplog.text
