@@ -79,8 +79,8 @@ def log_tail(path: Path, lines: int = 15) -> str:
 
 def outside_hint(tail: str) -> str:
     """What a log's end says about a shutdown signal: during a run this suite only ever sends SIGKILL, so
-    a broker or Redis shutting down cleanly was signalled by someone else (say, a `pkill -x mosquitto`
-    elsewhere on the machine)."""
+    a broker or Redis shutting down cleanly was signalled by a process outside it, which this suite reports
+    instead of taking it for a product failure."""
     if "terminating" in tail or "Received SIGTERM" in tail or "Received SIGINT" in tail:
         return " [it was asked to shut down: a SIGTERM/SIGINT from outside this suite]"
     return ""
