@@ -25,8 +25,8 @@ logger = logging.getLogger(__name__)
 # at Python's default 5 ms a reply waited up to that long behind one thread's Python code, after every
 # round trip of a step (bench/README.md has what 0.5 ms did to step latency).
 SWITCH_INTERVAL_SECONDS = 0.0005
-# A failed step (PostgreSQL or Redis away) is tried again after this long, doubling per failure in a row.
 NOTIFY_TASK = "fleet.run_notify"  # workers.tasks.run_notify, sent by name: the tasks import this module
+# A failed step (PostgreSQL or Redis away) is tried again after this long, doubling per failure in a row.
 RETRY_FIRST_SECONDS = 0.5
 RETRY_MAX_SECONDS = 10.0
 

@@ -1,6 +1,7 @@
 """The Celery step task (`workers.tasks.step_robots`) run in this process, against the real PostgreSQL, Redis
 and broker."""
 
+import time
 from collections.abc import Callable
 
 import pytest
@@ -90,3 +91,20 @@ def test_retry_delays_double_up_to_a_bound() -> None:
     ]
     assert delays[-1] == stepper.RETRY_MAX_SECONDS
     assert delays == sorted(delays)
+
+
+def test_start_up_work_is_tried_again_with_backoff_until_it_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """What the bridge and the step workers do once at start (load the robots, step every robot with work)
+    waits for PostgreSQL and Redis instead of ending the process."""
+    monkeypatch.setattr(stepper, "RETRY_FIRST_SECONDS", 0.01)
+    tries = []
+
+    def load_while_the_database_is_away() -> None:
+        tries.append(time.monotonic())
+        if len(tries) < 3:
+            raise RuntimeError("database went away")
+
+    stepper.keep_trying("loading the robots", load_while_the_database_is_away)
+
+    assert len(tries) == 3
+    assert tries[1] - tries[0] >= 0.01 and tries[2] - tries[1] >= 0.02  # waited, then twice as long
