@@ -186,12 +186,13 @@ _thread_local = threading.local()
 
 
 def _thread_connection() -> redis.connection.AbstractConnection:
-    """This thread's own connection to `client()`'s Redis; a forked child makes its own."""
+    """This thread's own connection to `client()`'s Redis; a forked child makes its own, and so does a
+    thread whose process was pointed at another Redis (tests with a private one)."""
+    pool = client().connection_pool
     owned = getattr(_thread_local, "owned", None)
-    if owned is None or owned[0] != os.getpid():
-        pool = client().connection_pool
-        owned = _thread_local.owned = (os.getpid(), pool.connection_class(**pool.connection_kwargs))
-    return owned[1]
+    if owned is None or owned[0] != os.getpid() or owned[1] is not pool:
+        owned = _thread_local.owned = (os.getpid(), pool, pool.connection_class(**pool.connection_kwargs))
+    return owned[2]
 
 
 def _send_and_read(connection: redis.connection.AbstractConnection, commands: list[Command]) -> list[Any]:

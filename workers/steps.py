@@ -8,6 +8,7 @@ carries several robots when a bridge batch or a sweep asks for several: Celery's
 order of a step's own.
 """
 
+import atexit
 import logging
 import threading
 import time
@@ -56,55 +57,78 @@ def request_steps(names: Iterable[str], *, at: float | None = None) -> None:
             raise
 
 
-def request_steps_or_later(names: Iterable[str]) -> None:
-    """`request_steps`, or if Redis or the broker is away, the same again in the background until it works.
+def request_steps_soon(names: Iterable[str]) -> None:
+    """`request_steps` from this process's sender thread, which the caller does not wait for.
 
     For callers whose change is committed already (an API request, beat's heartbeat check): the change
-    stands whether or not its step can be queued now, so the caller must not fail for it.
+    stands whether or not its step can be queued now, so the caller must not fail for it. Requests made
+    while the sender sends go out together with the next send: under a burst of API requests a task
+    carries several robots, and Celery's cost per task is paid once for them.
     """
-    names = list(names)
-    try:
-        request_steps(names)
-    except (redis.RedisError, kombu.exceptions.OperationalError, OSError) as error:
-        logger.warning(
-            "steps of %s not queued (%s); trying again every %s s", names, error, UNQUEUED_RETRY_SECONDS
-        )
-        _unqueued.add(names)
+    _sender.add(names, at=time.time())
 
 
-class _Unqueued:
-    """Robots whose step request failed, requested again by a thread of their own until Redis is back."""
+class _StepSender:
+    """Sends the requested steps from a thread of its own; while Redis or the broker is away it keeps
+    them and tries again every `UNQUEUED_RETRY_SECONDS` until they are queued."""
 
     def __init__(self) -> None:
-        self._names: set[str] = set()
-        self._lock = threading.Lock()
+        self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
+        self._at: float | None = None  # when the oldest of them was requested
+        self._sending = False
+        self._changed = threading.Condition()
         self._thread: threading.Thread | None = None
 
-    def add(self, names: list[str]) -> None:
-        with self._lock:
-            self._names.update(names)
+    def add(self, names: Iterable[str], *, at: float) -> None:
+        with self._changed:
+            self._names.update(dict.fromkeys(names))
+            if not self._names:
+                return
+            self._at = at if self._at is None else min(self._at, at)
             if self._thread is None or not self._thread.is_alive():
-                self._thread = threading.Thread(
-                    target=self._retry_until_queued, name="unqueued-steps", daemon=True
-                )
+                self._thread = threading.Thread(target=self._send_forever, name="step-sender", daemon=True)
                 self._thread.start()
+            self._changed.notify_all()
 
-    def _retry_until_queued(self) -> None:
+    def flush(self, timeout: float) -> bool:
+        """Wait until every request made so far is queued (at exit); False if `timeout` s passed first."""
+        with self._changed:
+            return self._changed.wait_for(lambda: not self._names and not self._sending, timeout)
+
+    def _send_forever(self) -> None:
+        failing = False
         while True:
-            time.sleep(UNQUEUED_RETRY_SECONDS)
-            with self._lock:
-                names, self._names = self._names, set()
+            with self._changed:
+                self._changed.wait_for(lambda: self._names)
+                names, at = list(self._names), self._at or time.time()
+                self._names, self._at, self._sending = {}, None, True
             try:
-                request_steps(names)
-            except (redis.RedisError, kombu.exceptions.OperationalError, OSError):
-                with self._lock:
-                    self._names |= names
-                continue
-            logger.info("steps of %s queued after all", sorted(names))
-            with self._lock:
-                if not self._names:
-                    self._thread = None
-                    return
+                request_steps(names, at=at)
+            except (redis.RedisError, kombu.exceptions.OperationalError, OSError) as error:
+                if not failing:
+                    logger.warning(
+                        "steps not queued (%s); trying again every %s s", error, UNQUEUED_RETRY_SECONDS
+                    )
+                failing = True
+                self.add(names, at=at)
+                time.sleep(UNQUEUED_RETRY_SECONDS)
+            else:
+                if failing:
+                    logger.info("steps queued again after the outage")
+                failing = False
+            finally:
+                with self._changed:
+                    self._sending = False
+                    self._changed.notify_all()
 
 
-_unqueued = _Unqueued()
+_sender = _StepSender()
+
+
+def flush(timeout: float = 2.0) -> bool:
+    """Wait until the steps requested so far with `request_steps_soon` are queued; False if `timeout` s
+    passed first (Redis or the broker away). Run at exit, so that a stopping API process loses none."""
+    return _sender.flush(timeout)
+
+
+atexit.register(flush)

@@ -11,6 +11,7 @@ from tests.api.readme import README_MISSIONS
 from tests.factories import MissionFactory
 from tests.private_redis import PrivateRedis, live_state_in
 from tests.waiting import wait_for
+from workers import steps
 
 pytestmark = pytest.mark.django_db
 
@@ -469,5 +470,6 @@ def test_a_mission_posted_while_redis_is_away_is_created_and_its_robot_stepped_o
         private.start()
         try:
             wait_for(lambda: private.client().exists(livestate.step_marker_key("redisless01")), timeout=10)
+            assert steps.flush(timeout=10)  # its task is sent after its marker
         finally:
             private.kill()

@@ -19,6 +19,7 @@ from vda5050.models import (
     VisualizationContent,
 )
 from vda5050.topics import RobotAddress
+from workers import steps
 from workers.bridge import Bridge
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
@@ -63,7 +64,9 @@ def factsheet_message(robot: Robot | str, factsheet: FactsheetContent) -> tuple[
 
 
 def step_requested(robot: Robot | str) -> bool:
-    """Whether a step was queued for the robot since the last check (its marker), which clears it."""
+    """Whether a step was queued for the robot since the last check (its marker), which clears it; the
+    steps requested in the background (`steps.request_steps_soon`) are queued first."""
+    steps.flush(timeout=10)
     name = robot if isinstance(robot, str) else robot.name
     return bool(livestate.client().delete(livestate.step_marker_key(name)))
 

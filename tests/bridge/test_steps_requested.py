@@ -1,6 +1,7 @@
 """Requested steps (`workers.steps`): Celery tasks on the steps queue, at most one queued per robot; against
 the real Redis (the Celery broker)."""
 
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -62,17 +63,30 @@ def test_a_robot_whose_step_is_queued_is_not_queued_again_until_its_step_reads_i
     assert step_tasks(names) == [names[:1], names[1:2], names[:1]]
 
 
+def test_requests_made_while_the_sender_is_busy_go_out_together_in_tasks_of_several_robots(
+    names: list[str],
+) -> None:
+    sender = steps._StepSender()
+    with sender._changed:  # held, as while the sender sends: it cannot take the requests meanwhile
+        for name in names[:10]:
+            sender.add([name], at=time.time())
+
+    assert sender.flush(timeout=10)
+    assert step_tasks(names) == [names[:8], names[8:10]]
+
+
 def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
     names: list[str], tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     private = PrivateRedis(tmp_path)
     with live_state_in(private.url):
-        steps.request_steps_or_later(names[:1])  # nothing listens on the port yet: no error either
-        assert "not queued" in caplog.text
+        steps.request_steps_soon(names[:1])  # nothing listens on the port yet: no error either
+        wait_for(lambda: "not queued" in caplog.text, timeout=10)
 
         private.start()
         try:
             wait_for(lambda: private.client().exists(livestate.step_marker_key(names[0])), timeout=10)
+            assert steps.flush(timeout=10)  # its task is sent after its marker
         finally:
             private.kill()
 

@@ -10,7 +10,15 @@ from django.conf import settings
 
 from fleet import livestate
 from tests.e2e.conftest import BRIDGE, PYTHON, WORKER, Process
-from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission, wait_robot
+from tests.e2e.helpers import (
+    create_robot,
+    get,
+    post_mission,
+    route,
+    wait_mission,
+    wait_mission_where,
+    wait_robot,
+)
 from tests.faults.stack import PrivateBroker
 from tests.waiting import wait_for
 from workers import metrics
@@ -104,9 +112,9 @@ def test_simulator_started_late_gets_its_mission(api, simulator, unique):
     robot = unique("late")
     create_robot(api, robot)
     name = post_mission(api, unique("m"), robot, [route("r", (1, 0))])["name"]
-    time.sleep(2)
-    assert get(api, "mission", name)["status"]["state"] == "PENDING"
-    assert get(api, "mission", name)["status"]["waiting_reason"] == "Robot is offline"
+    waiting = wait_mission_where(api, name, lambda status: status["waiting_reason"] is not None, timeout=30)
+    status = waiting["status"]
+    assert (status["state"], status["waiting_reason"]) == ("PENDING", "Robot is offline")
     simulator(f"{robot},0,0")
     assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
 
