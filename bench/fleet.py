@@ -28,8 +28,9 @@ import orjson
 
 from bench import measure, report
 from bench.api import ApiError, DispatchApi
-from bench.mqtt import Broker, Connection
+from bench.mqtt import Connection
 from bench.robot import FACTSHEET_REQUEST, FakeRobot, OrderError, utc_now
+from simulator.runner import BrokerSettings
 from vda5050.models import ConnectionState
 
 logger = logging.getLogger("bench")
@@ -61,6 +62,8 @@ class Options:
     mqtt_prefix: str = "uagv/v2/RobotCompany"
     mqtt_username: str | None = None
     mqtt_password: str | None = None
+    mqtt_tls: bool = False
+    mqtt_ca_file: str | None = None
     robots: int = 10
     nodes: int = 5
     queue: int = 2
@@ -148,10 +151,18 @@ class Bench:
         self.options = options
         self.loop = asyncio.get_running_loop()
         self.api = DispatchApi(options.base_url, options.http_concurrency)
-        broker = Broker(options.mqtt_host, options.mqtt_port, options.mqtt_username, options.mqtt_password)
+        broker = BrokerSettings(
+            host=options.mqtt_host,
+            port=options.mqtt_port,
+            username=options.mqtt_username,
+            password=options.mqtt_password,
+            tls=options.mqtt_tls,
+            ca_file=options.mqtt_ca_file,
+        )
+        tls = broker.tls_context()
         connection_count = -(-options.robots // options.robots_per_connection)
         self.connections = [
-            Connection(f"{options.name_prefix}-{index}", broker, self._on_message)
+            Connection(f"{options.name_prefix}-{index}", broker, tls, self._on_message)
             for index in range(connection_count)
         ]
         self.loads = [self._new_load(index) for index in range(options.robots)]
@@ -644,6 +655,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--mqtt-username", default=None)
     parser.add_argument("--mqtt-password", default=None)
+    parser.add_argument("--mqtt-tls", action="store_true", help="connect to the broker over TLS")
+    parser.add_argument("--mqtt-ca-file", default=None, help="CA certificate(s) (default: the system's)")
     parser.add_argument("--robots", type=int, default=defaults.robots, help="fleet size N")
     parser.add_argument(
         "--sweep", default="", help="comma-separated fleet sizes, one run each (overrides --robots)"

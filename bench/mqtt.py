@@ -10,13 +10,15 @@ from __future__ import annotations
 import asyncio
 import logging
 import socket
+import ssl
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
+
+from simulator.runner import BrokerSettings, read_available
 
 logger = logging.getLogger(__name__)
 
@@ -28,18 +30,12 @@ RECONNECT_DELAY = 1.0  # s
 MessageHandler = Callable[[str, bytes], None]
 
 
-@dataclass(frozen=True)
-class Broker:
-    host: str = "127.0.0.1"
-    port: int = 1883
-    username: str | None = None
-    password: str | None = None
-
-
 class Connection:
     """One paho client; ``publish`` only queues, the event loop writes when the socket is ready."""
 
-    def __init__(self, name: str, broker: Broker, on_message: MessageHandler) -> None:
+    def __init__(
+        self, name: str, broker: BrokerSettings, tls: ssl.SSLContext | None, on_message: MessageHandler
+    ) -> None:
         self.name = name
         self.broker = broker
         self.loop = asyncio.get_running_loop()
@@ -54,6 +50,8 @@ class Connection:
             client_id=f"{name}-{uuid.uuid4().hex[:8]}",
             protocol=MQTTProtocolVersion.MQTTv311,
         )
+        if tls is not None:
+            client.tls_set_context(tls)
         if broker.username is not None:
             client.username_pw_set(broker.username, broker.password)
         client.on_connect = self._on_connect
@@ -114,7 +112,7 @@ class Connection:
         """Read on the event loop; write each message at once (no Nagle wait behind an unacked one)."""
         if isinstance(sock, socket.socket):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self.loop.add_reader(sock, client.loop_read)
+        self.loop.add_reader(sock, read_available, client)
 
     def _on_connect(self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
         if reason.is_failure:

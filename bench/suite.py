@@ -1,7 +1,7 @@
 """`make bench`: start a Mission Dispatch stack of its own, run the benchmark runs, write the report.
 
 The stack uses its own database (`mission_dispatch_bench`), Redis database, API port and Mosquitto broker
-(`deploy/mosquitto.conf`'s settings on port 1884), so it never mixes with `make run`; its processes are
+(`deploy/mosquitto/conf.d/tuning.conf`'s settings on port 1884), so it never mixes with `make run`; its processes are
 those of `deploy/Procfile` (no simulator), with `--bridges`
 bridges (sharing the robots' messages through an MQTT shared subscription) and `--workers` step-worker
 processes. Step capacity follows step-worker processes (where the machine has the cores); a bridge adds
@@ -36,7 +36,7 @@ VENV_BIN = Path(sys.executable).parent
 CELERY = str(VENV_BIN / "celery")
 API_PORT = 5100
 BROKER_PORT = 1884
-BROKER_CONFIG = ROOT / "deploy" / "mosquitto.conf"
+BROKER_CONFIG = ROOT / "deploy" / "mosquitto" / "conf.d" / "tuning.conf"
 # As in `deploy/Procfile`: on a machine it shares with the dispatch path (bridge, steps, PostgreSQL, broker),
 # the API gets the CPU only after them, so a burst of requests never queues the steps behind it.
 API_NICENESS = 5

@@ -167,6 +167,14 @@ MQTT_TRANSPORT = env_str("FLEET_MQTT_TRANSPORT", "tcp")
 MQTT_WS_PATH = env_str("FLEET_MQTT_WS_PATH", "/mqtt")
 MQTT_USERNAME = env_str("FLEET_MQTT_USERNAME", "")
 MQTT_PASSWORD = env_str("FLEET_MQTT_PASSWORD", "")
+# TLS to the broker (deploy/README.md, "Secured MQTT"): the broker's certificate is checked against the CA
+# file (empty: the system's CAs) and, unless turned off, its host name against FLEET_MQTT_HOST.
+MQTT_TLS = env_bool("FLEET_MQTT_TLS", False)
+MQTT_TLS_CA_FILE = env_str("FLEET_MQTT_TLS_CA_FILE", "")
+MQTT_TLS_CHECK_HOSTNAME = env_bool("FLEET_MQTT_TLS_CHECK_HOSTNAME", True)
+# A client certificate, for brokers that require one (`require_certificate true`).
+MQTT_TLS_CERT_FILE = env_str("FLEET_MQTT_TLS_CERT_FILE", "")
+MQTT_TLS_KEY_FILE = env_str("FLEET_MQTT_TLS_KEY_FILE", "")
 
 # Defaults for a new robot's VDA 5050 identity: topic <interface_name>/v<major>/<manufacturer>/<serial>/...
 VDA5050_INTERFACE_NAME = env_str("FLEET_VDA5050_INTERFACE_NAME", "uagv")

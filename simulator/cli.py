@@ -7,6 +7,7 @@ import asyncio
 import logging
 import signal
 import time
+from pathlib import Path
 
 from simulator.config import (
     DEFAULT_INTERFACE_NAME,
@@ -14,6 +15,7 @@ from simulator.config import (
     SUPPORTED_VERSIONS,
     RobotConfig,
     SimulationSettings,
+    parse_credentials,
     parse_robot_spec,
     spread_robots,
 )
@@ -72,8 +74,25 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--mqtt_ws_path", default="/mqtt", help="websocket path (--mqtt_transport websockets)"
     )
-    parser.add_argument("--mqtt_username", default=None)
+    parser.add_argument("--mqtt_username", default=None, help="shared by every robot without credentials")
     parser.add_argument("--mqtt_password", default=None)
+    parser.add_argument(
+        "--mqtt_credentials",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="each robot's own login: lines 'serial_number username password' (deploy/mosquitto/add-robot)",
+    )
+    parser.add_argument("--mqtt_tls", action="store_true", help="connect over TLS (wss with websockets)")
+    parser.add_argument("--mqtt_ca_file", default=None, help="CA certificate(s) (default: the system's)")
+    parser.add_argument(
+        "--mqtt_no_check_hostname",
+        dest="mqtt_check_hostname",
+        action="store_false",
+        help="accept a broker certificate issued for another host name",
+    )
+    parser.add_argument("--mqtt_cert_file", default=None, help="client certificate, if the broker wants one")
+    parser.add_argument("--mqtt_key_file", default=None, help="its private key (default: in the cert file)")
     parser.add_argument("--log_level", choices=("DEBUG", "INFO", "WARNING", "ERROR"), default="INFO")
     return parser
 
@@ -87,6 +106,34 @@ def robot_configs(args: argparse.Namespace) -> list[RobotConfig]:
     if duplicates:
         raise ValueError(f"serial numbers must be unique (they are topic levels): {', '.join(duplicates)}")
     return configs
+
+
+def broker_settings(
+    args: argparse.Namespace, fleet: list[tuple[RobotConfig, RobotAddress]]
+) -> BrokerSettings:
+    """Where and how to connect; with ``--mqtt_credentials`` every robot must have its own login."""
+    credentials = parse_credentials(args.mqtt_credentials.read_text()) if args.mqtt_credentials else {}
+    if credentials:
+        missing = [address.serial_number for _, address in fleet if address.serial_number not in credentials]
+        if missing:
+            raise ValueError(f"{args.mqtt_credentials} has no credentials for {', '.join(missing)}")
+    tls_files = (args.mqtt_ca_file, args.mqtt_cert_file, args.mqtt_key_file)
+    if not args.mqtt_tls and (any(tls_files) or not args.mqtt_check_hostname):
+        raise ValueError("the --mqtt_*_file options and --mqtt_no_check_hostname need --mqtt_tls")
+    return BrokerSettings(
+        host=args.mqtt_host,
+        port=args.mqtt_port,
+        transport=args.mqtt_transport,
+        ws_path=args.mqtt_ws_path,
+        username=args.mqtt_username,
+        password=args.mqtt_password,
+        credentials=credentials,
+        tls=args.mqtt_tls,
+        ca_file=args.mqtt_ca_file,
+        check_hostname=args.mqtt_check_hostname,
+        cert_file=args.mqtt_cert_file,
+        key_file=args.mqtt_key_file,
+    )
 
 
 def topic_address(config: RobotConfig, args: argparse.Namespace) -> RobotAddress:
@@ -141,14 +188,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         settings = settings_from(args)
         fleet = [(config, topic_address(config, args)) for config in robot_configs(args)]
-    except ValueError as exc:  # ProtocolError (a bad id or version) is a ValueError too
+        broker = broker_settings(args, fleet)
+    except (ValueError, OSError) as exc:  # ProtocolError (a bad id or version) is a ValueError too
         parser.error(str(exc))
-    broker = BrokerSettings(
-        host=args.mqtt_host,
-        port=args.mqtt_port,
-        transport=args.mqtt_transport,
-        ws_path=args.mqtt_ws_path,
-        username=args.mqtt_username,
-        password=args.mqtt_password,
-    )
     asyncio.run(simulate(fleet, settings, broker))

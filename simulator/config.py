@@ -73,6 +73,31 @@ class SimulationSettings:
         return self.speed * self.tick_period
 
 
+@dataclass(frozen=True)
+class Credentials:
+    """A robot's own MQTT login (deploy/README.md: the username is its serial number)."""
+
+    username: str
+    password: str
+
+
+def parse_credentials(text: str) -> dict[str, Credentials]:
+    """``--mqtt_credentials`` file: one ``serial_number username password`` per line; lines starting with
+    ``#`` are comments."""
+    credentials: dict[str, Credentials] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        fields = line.split()
+        if not fields or fields[0].startswith("#"):
+            continue
+        if len(fields) != 3:
+            raise ValueError(f"credentials line {number} must be 'serial_number username password'")
+        serial_number, username, password = fields
+        if serial_number in credentials:
+            raise ValueError(f"credentials line {number}: {serial_number!r} is listed twice")
+        credentials[serial_number] = Credentials(username, password)
+    return credentials
+
+
 def parse_robot_spec(spec: str) -> RobotConfig:
     """``carter01,4,5`` or ``carter02,9,9,3.14,map,3,80,Acme,sn-2,MANIPULATOR`` -> RobotConfig."""
     fields = [field.strip() for field in spec.split(",")]

@@ -11,14 +11,16 @@ from __future__ import annotations
 import asyncio
 import logging
 import resource
+import ssl
 import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
+from simulator.config import Credentials
 from simulator.robot import Outgoing, SimulatedRobot
 from vda5050.topics import Topic
 
@@ -42,6 +44,30 @@ class BrokerSettings:
     ws_path: str = "/mqtt"
     username: str | None = None
     password: str | None = None
+    credentials: Mapping[str, Credentials] = field(default_factory=dict)  # serial number -> its own login
+    tls: bool = False
+    ca_file: str | None = None  # None: the CAs the system trusts
+    check_hostname: bool = True
+    cert_file: str | None = None  # a client certificate, for brokers that require one
+    key_file: str | None = None
+
+    def login(self, serial_number: str) -> Credentials | None:
+        """The robot's own credentials if it has some, else the shared ones (if any)."""
+        own = self.credentials.get(serial_number)
+        if own is not None:
+            return own
+        return None if self.username is None else Credentials(self.username, self.password or "")
+
+    def tls_context(self) -> ssl.SSLContext | None:
+        """One context for every client of the process (None without TLS): the broker must show a
+        certificate from ``ca_file`` issued for ``host``, unless host names are not checked."""
+        if not self.tls:
+            return None
+        context = ssl.create_default_context(cafile=self.ca_file)
+        context.check_hostname = self.check_hostname
+        if self.cert_file:
+            context.load_cert_chain(self.cert_file, self.key_file)
+        return context
 
 
 @dataclass
@@ -75,8 +101,11 @@ class RobotLink:
         )
         if broker.transport == "websockets":
             client.ws_set_options(path=broker.ws_path)
-        if broker.username is not None:
-            client.username_pw_set(broker.username, broker.password)
+        if fleet.tls_context is not None:
+            client.tls_set_context(fleet.tls_context)
+        login = broker.login(address.serial_number)
+        if login is not None:
+            client.username_pw_set(login.username, login.password)
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
@@ -148,7 +177,7 @@ class RobotLink:
 
     def _on_socket_open(self, client: mqtt.Client, userdata: Any, sock: Any) -> None:
         self.closed.clear()
-        self.fleet.loop.add_reader(sock, client.loop_read)
+        self.fleet.loop.add_reader(sock, read_available, client)
 
     def _on_socket_close(self, client: mqtt.Client, userdata: Any, sock: Any) -> None:
         self.fleet.loop.remove_reader(sock)
@@ -188,6 +217,7 @@ class Fleet:
         self.stats = TickStats()
         self.loop = asyncio.get_running_loop()
         self._connacks = asyncio.Event()
+        self.tls_context = broker.tls_context()
         self.links = [RobotLink(robot, broker, self) for robot in robots]
 
     async def run(self, stop: asyncio.Event) -> None:
@@ -267,6 +297,14 @@ class Fleet:
             logger.warning(
                 "%d clients did not close in time", sum(not link.closed.is_set() for link in self.links)
             )
+
+
+def read_available(client: mqtt.Client) -> None:
+    """Read what the socket has. TLS decrypts a whole record at once: bytes of it that paho has not taken
+    yet wait in the TLS layer, where the event loop's selector cannot see them, so read those too."""
+    client.loop_read()
+    while hasattr(sock := client.socket(), "pending") and sock.pending():  # as paho's own loop does
+        client.loop_read()
 
 
 def raise_file_limit(robot_count: int) -> None:

@@ -3,6 +3,7 @@
 import logging
 import os
 import socket
+import ssl
 import threading
 import uuid
 from typing import Any
@@ -44,12 +45,25 @@ def new_client(role: str) -> ServerClient:
     )
     if settings.MQTT_TRANSPORT == "websockets":
         client.ws_set_options(path=settings.MQTT_WS_PATH)
+    if settings.MQTT_TLS:  # over websockets too: wss
+        client.tls_set_context(tls_context())
     if settings.MQTT_USERNAME:
         client.username_pw_set(settings.MQTT_USERNAME, settings.MQTT_PASSWORD or None)
     client.on_socket_open = _no_delay
     client.reconnect_delay_set(min_delay=0.5, max_delay=5)
     client.max_queued_messages_set(100_000)
     return client
+
+
+def tls_context() -> ssl.SSLContext:
+    """The TLS settings of every server process's client: the broker must show a certificate from
+    FLEET_MQTT_TLS_CA_FILE (else a CA the system trusts) issued for FLEET_MQTT_HOST, unless host names are
+    not checked; a client certificate goes along if one is configured."""
+    context = ssl.create_default_context(cafile=settings.MQTT_TLS_CA_FILE or None)
+    context.check_hostname = settings.MQTT_TLS_CHECK_HOSTNAME
+    if settings.MQTT_TLS_CERT_FILE:
+        context.load_cert_chain(settings.MQTT_TLS_CERT_FILE, settings.MQTT_TLS_KEY_FILE or None)
+    return context
 
 
 def _no_delay(client: mqtt.Client, userdata: object, sock: object) -> None:

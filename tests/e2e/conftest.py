@@ -175,8 +175,9 @@ def recorder() -> Iterator[Recorder]:
         validate_message(topic.rsplit("/", 1)[-1], message["version"], message)
 
 
-def start_servers(logs: Path) -> Stack:
-    """Bridge, worker and beat against the test database and the test Redis, time compressed."""
+def start_servers(logs: Path, **overrides: str) -> Stack:
+    """Bridge, worker and beat against the test database and the test Redis, time compressed; `overrides`
+    are more settings (another broker, say)."""
     env = {
         **os.environ,
         **SERVER_ENV,
@@ -184,6 +185,7 @@ def start_servers(logs: Path) -> Stack:
         "FLEET_DB_NAME": connection.settings_dict["NAME"],
         "FLEET_REDIS_URL": settings.REDIS_URL,
         "PYTHONUNBUFFERED": "1",
+        **overrides,
     }
     stack = Stack(env=env, logs=logs)
     stack.add("bridge", BRIDGE)
@@ -217,26 +219,19 @@ class Simulator:
     names: list[str]
 
 
+def simulator_command(*specs: str, extra: tuple[str, ...] = ()) -> list[str]:
+    """A simulator of robot specs like `"{name},0,0"` whose robots drive fast and report often."""
+    fast = ["--tick_period", "0.05", "--speed", "10", "--state_period", "0.5"]
+    return [PYTHON, "-m", "simulator", "--robots", *specs, *fast, *extra]
+
+
 @pytest.fixture
 def simulator(stack: Stack, tmp_path: Path) -> Iterator[Callable[..., Simulator]]:
     """Start a simulator for robot specs like `"{name},0,0"`; stopped at the end of the test."""
     started: list[Process] = []
 
     def start(*specs: str, extra: tuple[str, ...] = ()) -> Simulator:
-        argv = [
-            PYTHON,
-            "-m",
-            "simulator",
-            "--robots",
-            *specs,
-            "--tick_period",
-            "0.05",
-            "--speed",
-            "10",
-            "--state_period",
-            "0.5",
-            *extra,
-        ]
+        argv = simulator_command(*specs, extra=extra)
         process = Process(
             f"simulator-{len(started)}", argv, stack.env, tmp_path / f"simulator-{len(started)}.log"
         )
