@@ -1,8 +1,8 @@
 """`make bench`: start a Mission Dispatch stack of its own, run the benchmark runs, write the report.
 
 The stack uses its own database (`mission_dispatch_bench`), Redis database, API port and Mosquitto broker
-(`deploy/mosquitto/conf.d/tuning.conf`'s settings on port 1884), so it never mixes with `make run`; its processes are
-those of `deploy/Procfile` (no simulator), with `--bridges`
+(`deploy/mosquitto/conf.d/tuning.conf`'s settings on port 1884), so it never mixes with `make run`; its
+processes are those of `deploy/Procfile` (no simulator), with `--bridges`
 bridges (sharing the robots' messages through an MQTT shared subscription) and `--workers` step-worker
 processes. Step capacity follows step-worker processes (where the machine has the cores); a bridge adds
 MQTT intake only. The `scale` suite once per layout into one directory, whose `latest.md` then compares them

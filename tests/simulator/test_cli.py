@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+import ssl
+from pathlib import Path
+
 import pytest
 
-from simulator.cli import build_parser, robot_configs, settings_from, topic_address
-from simulator.config import RobotConfig, RobotType, parse_robot_spec
+from simulator.cli import broker_settings, build_parser, robot_configs, settings_from, topic_address
+from simulator.config import Credentials, RobotConfig, RobotType, parse_credentials, parse_robot_spec
+from vda5050.topics import RobotAddress
 
 
 def test_short_spec_uses_the_reference_defaults() -> None:
@@ -76,3 +81,48 @@ def test_speed_zero_or_instant_completes_orders_at_once() -> None:
     assert not settings_from(parse([])).completes_instantly
     with pytest.raises(ValueError):
         settings_from(parse(["--tick_period", "0"]))
+
+
+def fleet_of(args: argparse.Namespace) -> list[tuple[RobotConfig, RobotAddress]]:
+    return [(config, topic_address(config, args)) for config in robot_configs(args)]
+
+
+def test_each_robot_logs_in_with_its_own_credentials(tmp_path: Path) -> None:
+    credentials = tmp_path / "credentials"
+    credentials.write_text("# serial username password\na a secret-a\n\nb user-b secret-b\n")
+    argv = ["--robots", "a,0,0", "b,1,1", "--mqtt_credentials", str(credentials), "--mqtt_username", "shared"]
+    args = build_parser().parse_args(argv)
+    broker = broker_settings(args, fleet_of(args))
+    assert broker.login("a") == Credentials("a", "secret-a")
+    assert broker.login("b") == Credentials("user-b", "secret-b")
+    assert broker.login("c") == Credentials("shared", "")  # not in the file: the shared login
+
+
+def test_a_robot_missing_from_the_credentials_file_is_refused(tmp_path: Path) -> None:
+    credentials = tmp_path / "credentials"
+    credentials.write_text("a a secret-a\n")
+    args = build_parser().parse_args(["--robots", "a,0,0", "b,1,1", "--mqtt_credentials", str(credentials)])
+    with pytest.raises(ValueError, match="no credentials for b"):
+        broker_settings(args, fleet_of(args))
+
+
+@pytest.mark.parametrize("text", ["a a\n", "a a secret extra\n", "a a s1\na a s2\n"])
+def test_bad_credentials_lines_are_refused(text: str) -> None:
+    with pytest.raises(ValueError, match="line"):
+        parse_credentials(text)
+
+
+def test_tls_options() -> None:
+    args = build_parser().parse_args(["--mqtt_tls", "--mqtt_no_check_hostname"])
+    broker = broker_settings(args, fleet_of(args))
+    context = broker.tls_context()
+    assert context is not None and not context.check_hostname
+    assert context.verify_mode == ssl.CERT_REQUIRED  # the broker's certificate is still checked
+    assert broker_settings(build_parser().parse_args([]), []).tls_context() is None
+
+
+@pytest.mark.parametrize("option", [["--mqtt_ca_file", "ca.crt"], ["--mqtt_no_check_hostname"]])
+def test_tls_options_need_tls(option: list[str]) -> None:
+    args = build_parser().parse_args(option)
+    with pytest.raises(ValueError, match="need --mqtt_tls"):
+        broker_settings(args, fleet_of(args))
