@@ -1,6 +1,7 @@
 """A private Mosquitto running the shipped production configuration (deploy/mosquitto/), with certificates
 made for the test by the `openssl` CLI and logins made by the shipped `add-robot` script and
-`mosquitto_passwd -b`. Only paths and ports of the copy are changed: listeners, authentication and the ACL
+`mosquitto_passwd -b`. Only paths and ports of the copy are changed (and `require_certificate true` added
+where a test asks for deploy/README.md's client-certificate variant): listeners, authentication and the ACL
 are the shipped ones."""
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ class Certificates:
     ca: Path
     server_cert: Path
     server_key: Path
+    client_cert: Path  # the dispatcher's, for brokers that require client certificates
+    client_key: Path
     other_ca: Path  # a CA that signed nothing of the broker's
 
 
@@ -35,21 +38,30 @@ def openssl(directory: Path, *args: str) -> None:
 
 
 def make_certificates(directory: Path) -> Certificates:
-    """A CA, the broker's certificate for `localhost` signed by it, and a stranger CA."""
+    """A CA, the broker's certificate for `localhost` and the dispatcher's client certificate signed by it,
+    and a stranger CA."""
     directory.mkdir(parents=True, exist_ok=True)
     new_key = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256", "-nodes"]
     for ca in ("ca", "other-ca"):
         subject = f"/CN=Mission Dispatch test {ca}"
         openssl(directory, "req", "-x509", *new_key, "-days", "2", "-keyout", f"{ca}.key",
                 "-out", f"{ca}.crt", "-subj", subject)  # fmt: skip
-    (directory / "server.ext").write_text(f"subjectAltName=DNS:{HOST}\n")
-    openssl(directory, "req", *new_key, "-keyout", "server.key", "-out", "server.csr", "-subj", f"/CN={HOST}")
-    openssl(directory, "x509", "-req", "-in", "server.csr", "-CA", "ca.crt", "-CAkey", "ca.key",
-            "-CAcreateserial", "-out", "server.crt", "-days", "2", "-extfile", "server.ext")  # fmt: skip
+    for name, subject, extension in (
+        ("server", HOST, f"subjectAltName=DNS:{HOST}"),
+        ("client", DISPATCHER, "extendedKeyUsage=clientAuth"),
+    ):
+        (directory / f"{name}.ext").write_text(f"{extension}\n")
+        openssl(directory, "req", *new_key, "-keyout", f"{name}.key", "-out", f"{name}.csr",
+                "-subj", f"/CN={subject}")  # fmt: skip
+        openssl(directory, "x509", "-req", "-in", f"{name}.csr", "-CA", "ca.crt", "-CAkey", "ca.key",
+                "-CAcreateserial", "-out", f"{name}.crt", "-days", "2",
+                "-extfile", f"{name}.ext")  # fmt: skip
     return Certificates(
         ca=directory / "ca.crt",
         server_cert=directory / "server.crt",
         server_key=directory / "server.key",
+        client_cert=directory / "client.crt",
+        client_key=directory / "client.key",
         other_ca=directory / "other-ca.crt",
     )
 
@@ -62,6 +74,7 @@ class SecuredBroker:
     certificates: Certificates
     port: int = field(default_factory=free_port)
     dispatcher_password: str = "dispatcher-secret"
+    require_certificate: bool = False  # the listener option deploy/README.md tells how to add
     robots: dict[str, Credentials] = field(default_factory=dict)  # serial number -> its login
     process: Proc | None = None
 
@@ -91,7 +104,10 @@ class SecuredBroker:
         text = config.read_text()
         listener = f"listener {SHIPPED_PORT}\n"
         assert text.count(listener) == 1 and SHIPPED_DIRECTORY in text
-        text = text.replace(listener, f"listener {self.port} 127.0.0.1\n")
+        ours = f"listener {self.port} 127.0.0.1\n"
+        if self.require_certificate:
+            ours += "require_certificate true\n"
+        text = text.replace(listener, ours)
         config.write_text(text.replace(SHIPPED_DIRECTORY, str(self.etc)))
         subprocess.run(
             ["mosquitto_passwd", "-c", "-b", self.password_file, DISPATCHER, self.dispatcher_password],

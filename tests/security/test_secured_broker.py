@@ -19,6 +19,7 @@ from pytest_django.fixtures import Settings
 
 from simulator.runner import BrokerSettings
 from tests.security.broker import HOST, SecuredBroker
+from tests.security.conftest import as_dispatcher, private_secured_broker
 from tests.waiting import wait_for
 from tests.workers.subscriber import subscribed
 from workers.mqtt import new_client
@@ -26,6 +27,24 @@ from workers.mqtt import new_client
 pytestmark = pytest.mark.e2e
 
 CONNECT_SECONDS = 10.0
+
+
+def connack(client: mqtt.Client, host: str, port: int) -> Any:
+    """Connect and return the broker's CONNACK reason code, or None if it closed the connection (or the TLS
+    handshake failed on its side) without one."""
+    answers: list[Any] = []
+    answered = threading.Event()
+
+    def on_connect(client: mqtt.Client, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
+        answers.append(reason)
+        answered.set()
+
+    client.on_connect = on_connect
+    client.on_disconnect = lambda *args: answered.set()
+    client.connect(host, port)
+    client.loop_start()
+    assert answered.wait(CONNECT_SECONDS), "neither CONNACK nor a closed connection"
+    return answers[0] if answers else None
 
 
 class Robot:
@@ -44,8 +63,6 @@ class Robot:
             ca_file=str(broker.certificates.ca),
         )
         self.received: list[tuple[str, bytes]] = []
-        self.connack: Any = None
-        self.answered = threading.Event()  # CONNACK arrived, or the connection ended without one
         self.subscribed = threading.Event()
         self.client = mqtt.Client(
             CallbackAPIVersion.VERSION2,
@@ -57,23 +74,14 @@ class Robot:
             self.client.tls_set_context(context)
         if username is not None:
             self.client.username_pw_set(username, password)
-        self.client.on_connect = self._on_connect
-        self.client.on_disconnect = lambda *args: self.answered.set()
         self.client.on_subscribe = lambda *args: self.subscribed.set()
         self.client.on_message = lambda client, userdata, message: self.received.append(
             (message.topic, message.payload)
         )
 
-    def _on_connect(self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
-        self.connack = reason
-        self.answered.set()
-
     def connect(self) -> Any:
         """The broker's CONNACK reason code, or None if it closed the connection without one."""
-        self.client.connect(self.settings.host, self.settings.port)
-        self.client.loop_start()
-        assert self.answered.wait(CONNECT_SECONDS), "neither CONNACK nor a closed connection"
-        return self.connack
+        return connack(self.client, self.settings.host, self.settings.port)
 
     def subscribe(self, *topics: str) -> None:
         self.subscribed.clear()
@@ -182,3 +190,26 @@ def test_the_dispatcher_checks_the_brokers_certificate(dispatcher_settings: Sett
     client = new_client("test")
     assert client.connect("127.0.0.1", dispatcher_settings.MQTT_PORT) == mqtt.MQTT_ERR_SUCCESS
     client.disconnect()
+
+
+def test_a_client_certificate_goes_along_when_configured(
+    settings: Settings, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    """deploy/README.md's variant with client certificates required: without one the broker ends the
+    connection; with FLEET_MQTT_TLS_CERT_FILE/KEY_FILE the dispatcher is let in."""
+    with private_secured_broker(tmp_path_factory, require_certificate=True) as broker:
+        as_dispatcher(settings, broker)
+        without = new_client("test")
+        try:
+            assert connack(without, HOST, broker.port) is None
+        finally:
+            without.loop_stop()
+        settings.MQTT_TLS_CERT_FILE = str(broker.certificates.client_cert)
+        settings.MQTT_TLS_KEY_FILE = str(broker.certificates.client_key)
+        with_certificate = new_client("test")
+        try:
+            reason = connack(with_certificate, HOST, broker.port)
+            assert reason is not None and not reason.is_failure, reason
+        finally:
+            with_certificate.disconnect()
+            with_certificate.loop_stop()
