@@ -75,10 +75,11 @@ class SimulationSettings:
 
 @dataclass(frozen=True)
 class Credentials:
-    """A robot's own MQTT login (deploy/README.md: the username is its serial number)."""
+    """An MQTT login: a robot's own (deploy/README.md: the username is its serial number), or the shared
+    one, whose password may be left out."""
 
     username: str
-    password: str
+    password: str | None
 
 
 def parse_credentials(text: str) -> dict[str, Credentials]:

@@ -56,7 +56,7 @@ class BrokerSettings:
         own = self.credentials.get(serial_number)
         if own is not None:
             return own
-        return None if self.username is None else Credentials(self.username, self.password or "")
+        return None if self.username is None else Credentials(self.username, self.password)
 
     def tls_context(self) -> ssl.SSLContext | None:
         """One context for every client of the process (None without TLS): the broker must show a

@@ -95,7 +95,7 @@ def test_each_robot_logs_in_with_its_own_credentials(tmp_path: Path) -> None:
     broker = broker_settings(args, fleet_of(args))
     assert broker.login("a") == Credentials("a", "secret-a")
     assert broker.login("b") == Credentials("user-b", "secret-b")
-    assert broker.login("c") == Credentials("shared", "")  # not in the file: the shared login
+    assert broker.login("c") == Credentials("shared", None)  # not in the file: the shared login
 
 
 def test_a_robot_missing_from_the_credentials_file_is_refused(tmp_path: Path) -> None:
