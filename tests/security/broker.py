@@ -126,6 +126,11 @@ class SecuredBroker:
         self.robots[serial_number] = parse_credentials(self.credentials_file.read_text())[serial_number]
         return self.robots[serial_number]
 
+    def serial_number(self, base: str) -> str:
+        """The serial number (and username) of the robot whose login `add_robot` made from `base`-..."""
+        (serial_number,) = [serial for serial in self.robots if serial.startswith(f"{base}-")]
+        return serial_number
+
     def start(self) -> None:
         """Start with the logins made so far (Mosquitto reads its password file at start). Started as root,
         Mosquitto runs as the `mosquitto` user, which must be able to read its files."""

@@ -72,8 +72,9 @@ class Robot:
         context = self.settings.tls_context()
         if context is not None:
             self.client.tls_set_context(context)
-        if username is not None:
-            self.client.username_pw_set(username, password)
+        login = self.settings.login(self.serial)
+        if login is not None:
+            self.client.username_pw_set(login.username, login.password)
         self.client.on_subscribe = lambda *args: self.subscribed.set()
         self.client.on_message = lambda client, userdata, message: self.received.append(
             (message.topic, message.payload)
@@ -99,7 +100,7 @@ class Robot:
 @pytest.fixture
 def robots(secured_broker: SecuredBroker) -> Iterator[list[Robot]]:
     """Two robots connected with their own logins."""
-    serials = sorted(secured_broker.robots)[:2]
+    serials = [secured_broker.serial_number(base) for base in ("robot-a", "robot-b")]
     connected = [
         Robot(secured_broker, serial, secured_broker.robots[serial].password) for serial in serials
     ]
@@ -158,7 +159,7 @@ def test_a_robot_without_its_credentials_cannot_connect(
 ) -> None:
     username, password = login
     if username == "robot":
-        username = sorted(secured_broker.robots)[0]
+        username = secured_broker.serial_number("robot-a")
     robot = Robot(secured_broker, username, password)
     try:
         reason = robot.connect()
@@ -168,8 +169,8 @@ def test_a_robot_without_its_credentials_cannot_connect(
 
 
 def test_plain_mqtt_is_not_served_on_the_tls_listener(secured_broker: SecuredBroker) -> None:
-    serial, login = next(iter(secured_broker.robots.items()))
-    robot = Robot(secured_broker, serial, login.password, tls=False)
+    serial = secured_broker.serial_number("robot-a")
+    robot = Robot(secured_broker, serial, secured_broker.robots[serial].password, tls=False)
     try:
         assert robot.connect() is None  # the broker closed the connection: no CONNACK
     finally:

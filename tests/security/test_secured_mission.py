@@ -20,7 +20,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 def test_a_mission_runs_over_tls_with_the_acl(
     api: APIClient, unique: Callable[[str], str], secured_broker: SecuredBroker, tmp_path: Path
 ) -> None:
-    robot = next(serial for serial in secured_broker.robots if serial.startswith("carrier-"))
+    robot = secured_broker.serial_number("carrier")
     ca_file = str(secured_broker.certificates.ca)
     servers = start_servers(
         tmp_path,
