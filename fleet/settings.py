@@ -116,7 +116,7 @@ REST_FRAMEWORK = {
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
     "DEFAULT_FILTER_BACKENDS": ["django_filters.rest_framework.DjangoFilterBackend"],
     "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"],
-    "DEFAULT_PARSER_CLASSES": ["rest_framework.parsers.JSONParser"],
+    "DEFAULT_PARSER_CLASSES": ["fleet.parsers.JSONParser"],
     "DEFAULT_AUTHENTICATION_CLASSES": [],
     "DEFAULT_PERMISSION_CLASSES": [],
     "UNAUTHENTICATED_USER": None,
@@ -135,11 +135,30 @@ SPECTACULAR_SETTINGS = {
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
     "REDOC_DIST": "SIDECAR",
     "COMPONENT_SPLIT_REQUEST": True,
+    # The default hook, then what the serializers cannot say themselves (one kind per mission node).
+    "POSTPROCESSING_HOOKS": [
+        "drf_spectacular.hooks.postprocess_schema_enums",
+        "missions.api.serializers.schema_node_kinds",
+    ],
     "ENUM_NAME_OVERRIDES": {
         "RobotStateEnum": "robots.choices.RobotState",
         "MissionStateEnum": "missions.choices.MissionState",
     },
 }
+
+# --- API limits: bad input is a 400 that says which limit, never a worker's time or memory -------------
+# Read at start (the schema at /openapi.json states them). README.md, "Limits", has what each bounds.
+API_MAX_BODY_BYTES = env_int("FLEET_API_MAX_BODY_BYTES", 1_048_576)
+DATA_UPLOAD_MAX_MEMORY_SIZE = API_MAX_BODY_BYTES
+API_MAX_JSON_DEPTH = env_int("FLEET_API_MAX_JSON_DEPTH", 32)
+API_MAX_TREE_NODES = env_int("FLEET_API_MAX_TREE_NODES", 1000)
+API_MAX_WAYPOINTS = env_int("FLEET_API_MAX_WAYPOINTS", 1000)
+API_MAX_PARAMETERS_BYTES = env_int("FLEET_API_MAX_PARAMETERS_BYTES", 65_536)
+API_MAX_TEXT_LENGTH = env_int("FLEET_API_MAX_TEXT_LENGTH", 2048)
+API_MAX_LABELS = env_int("FLEET_API_MAX_LABELS", 100)
+API_MAX_FILTER_VALUES = env_int("FLEET_API_MAX_FILTER_VALUES", 500)
+# Query parameters Django parses at most: the longest filter list plus room for every other filter.
+DATA_UPLOAD_MAX_NUMBER_FIELDS = API_MAX_FILTER_VALUES + 100
 
 # --- Redis and Celery -----------------------------------------------------------------------------
 REDIS_URL = env_str("FLEET_REDIS_URL", "redis://127.0.0.1:6379/0")

@@ -7,7 +7,10 @@ from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
 from fleet.api import (
+    MAX_SECONDS,
     OBJECT_NAME_MAX_LENGTH,
+    JsonBooleanField,
+    JsonStringField,
     NumberField,
     ObjectNameSerializer,
     Pose2DSerializer,
@@ -40,19 +43,19 @@ class BatterySpecSerializer(StrictSerializer):
 class Vda5050IdentitySerializer(StrictSerializer):
     """How the robot is reached: topics <interface_name>/v<major>/<manufacturer>/<serial_number>/<topic>."""
 
-    interface_name = serializers.CharField(
+    interface_name = JsonStringField(
         required=False,
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
         help_text=f"First topic level; default {settings.VDA5050_INTERFACE_NAME!r} (setting).",
     )
-    manufacturer = serializers.CharField(
+    manufacturer = JsonStringField(
         required=False,
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
         help_text=f"Default {settings.VDA5050_MANUFACTURER!r} (setting).",
     )
-    serial_number = serializers.CharField(
+    serial_number = JsonStringField(
         required=False,
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
@@ -74,15 +77,19 @@ class RobotSpecSerializer(SpecSerializer):
     """The whole spec of a robot (PUT replaces it: omitted fields go back to their defaults)."""
 
     labels = serializers.ListField(
-        child=serializers.CharField(), default=list, help_text="Labels to group robots by (stored, unused)."
+        child=JsonStringField(),
+        default=list,
+        max_length=settings.API_MAX_LABELS,
+        help_text="Labels to group robots by (stored, unused).",
     )
     battery = BatterySpecSerializer(required=False)
     heartbeat_timeout = NumberField(
         default=_model_default("heartbeat_timeout"),
+        max_value=MAX_SECONDS,
         validators=[validate_positive],
         help_text="Seconds without a state message before the robot counts as offline.",
     )
-    switch_teleop = serializers.BooleanField(
+    switch_teleop = JsonBooleanField(
         default=_model_default("switch_teleop"),
         help_text="true puts the robot in teleop, false takes it out.",
     )
@@ -107,9 +114,9 @@ class RobotBatterySerializer(serializers.Serializer):
 
 
 class RobotVda5050Serializer(serializers.Serializer):
-    interface_name = serializers.CharField()
-    manufacturer = serializers.CharField()
-    serial_number = serializers.CharField()
+    interface_name = JsonStringField()
+    manufacturer = JsonStringField()
+    serial_number = JsonStringField()
     version = serializers.ChoiceField(source="protocol_version", choices=ProtocolVersion.choices)
     instant_actions_key = serializers.ChoiceField(choices=InstantActionsKey.choices)
 
@@ -120,8 +127,8 @@ class SoftwareVersionSerializer(serializers.Serializer):
 
 
 class HardwareVersionSerializer(serializers.Serializer):
-    manufacturer = serializers.CharField(default="", help_text="From the robot's state messages.")
-    serial_number = serializers.CharField(default="", help_text="From the robot's state messages.")
+    manufacturer = JsonStringField(default="", help_text="From the robot's state messages.")
+    serial_number = JsonStringField(default="", help_text="From the robot's state messages.")
 
 
 class FactsheetSerializer(serializers.Serializer):
