@@ -200,7 +200,7 @@ def lock_row(obj: M) -> M:
 # Durations (timeouts) in seconds at most: about 31 years, far inside what Python's timedelta and
 # PostgreSQL's interval hold, so no arithmetic on a stored duration overflows.
 MAX_SECONDS = 1e9
-# Integers in free-form JSON (action parameters, notify data) fit what the VDA 5050 encoder writes.
+# Integers in action parameters fit what the VDA 5050 encoder writes.
 INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
 
 
@@ -256,13 +256,21 @@ def validate_positive(value: float) -> None:
 
 
 def validate_free_json(value: Any) -> None:
-    """Free-form JSON (action parameters, notify data): at most FLEET_API_MAX_PARAMETERS_BYTES as JSON,
-    integers within 64 bits (the VDA 5050 encoder's range)."""
-    size = len(json.dumps(value, ensure_ascii=False, separators=(",", ":")).encode())
+    """Free-form JSON (action parameters, notify data): finite numbers only (JSON `1e999` is infinity,
+    which jsonb cannot hold), at most FLEET_API_MAX_PARAMETERS_BYTES as JSON."""
+    try:
+        text = json.dumps(value, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+    except ValueError:
+        raise serializers.ValidationError("Numbers must be finite.", code="finite_number") from None
+    size = len(text.encode())
     if size > settings.API_MAX_PARAMETERS_BYTES:
         raise serializers.ValidationError(
             f"Larger than {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON ({size}).", code="too_large"
         )
+
+
+def validate_int64(value: Any) -> None:
+    """Integers anywhere in `value` fit in 64 bits, the range of the VDA 5050 encoder (orjson)."""
     stack = [value]
     while stack:
         item = stack.pop()

@@ -4,7 +4,6 @@ Its own module, free of the views: DRF reads its parser setting while rest_frame
 parser must load without them (fleet.api imports the views).
 """
 
-import math
 import re
 from typing import Any
 
@@ -31,8 +30,8 @@ _UNSTORABLE_TEXT = re.compile("[\x00\ud800-\udfff]")
 class JSONParser(parsers.JSONParser):
     """DRF's JSON parser, bounded and storable. A body nested deeper than FLEET_API_MAX_JSON_DEPTH is
     refused (Python's decoder gives up on deep nesting with a RecursionError, answered here as a 400); every
-    string, key or value, anywhere in the body must be storable text, and every number finite (JSON
-    `1e999` is infinity), so no free-form value reaches PostgreSQL only to fail there."""
+    string, key or value, anywhere in the body must be text PostgreSQL can store, so no free-form value
+    reaches it only to fail there."""
 
     def parse(self, stream: Any, media_type: str | None = None, parser_context: Any = None) -> Any:
         try:
@@ -50,8 +49,8 @@ def _too_deep(loc: tuple[str | int, ...]) -> InputError:
 
 
 def body_check(data: Any) -> None:
-    """Raise an InputError (located where it is) for nesting too deep, unstorable text, a number that is
-    not finite. One pass over the parsed body, without recursion."""
+    """Raise an InputError (located where it is) for nesting too deep or unstorable text. One pass over the
+    parsed body, without recursion."""
     max_depth = settings.API_MAX_JSON_DEPTH
     stack: list[tuple[Any, tuple[str | int, ...]]] = [(data, ("body",))]
     while stack:
@@ -64,11 +63,8 @@ def body_check(data: Any) -> None:
                 if isinstance(key, str) and _UNSTORABLE_TEXT.search(key):
                     raise _unstorable(loc)
                 stack.append((item, (*loc, key)))
-        elif isinstance(value, str):
-            if _UNSTORABLE_TEXT.search(value):
-                raise _unstorable(loc)
-        elif isinstance(value, float) and not math.isfinite(value):
-            raise InputError("Numbers must be finite.", type="finite_number", loc=loc)
+        elif isinstance(value, str) and _UNSTORABLE_TEXT.search(value):
+            raise _unstorable(loc)
 
 
 def _unstorable(loc: tuple[str | int, ...]) -> InputError:

@@ -135,10 +135,11 @@ SPECTACULAR_SETTINGS = {
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
     "REDOC_DIST": "SIDECAR",
     "COMPONENT_SPLIT_REQUEST": True,
-    # The default hook, then what the serializers cannot say themselves (one kind per mission node).
+    # The default hook, then what each app's serializers and filters enforce but cannot state themselves.
     "POSTPROCESSING_HOOKS": [
         "drf_spectacular.hooks.postprocess_schema_enums",
-        "missions.api.serializers.schema_node_kinds",
+        "robots.api.serializers.schema_constraints",
+        "missions.api.serializers.schema_constraints",
     ],
     "ENUM_NAME_OVERRIDES": {
         "RobotStateEnum": "robots.choices.RobotState",

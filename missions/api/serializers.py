@@ -22,9 +22,11 @@ from fleet.api import (
     StrictSerializer,
     object_name_validator,
     validate_free_json,
+    validate_int64,
     validate_positive,
 )
 from missions.choices import FailureCategory, Lifecycle, MissionState
+from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
 from missions.vocabulary import NodeKind
 
@@ -32,7 +34,7 @@ NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
 DEFAULT_NOTIFY_TIMEOUT = 30
 # A notify call waits at most a day: longer is no notification.
 MAX_NOTIFY_TIMEOUT = 86_400
-FREE_JSON_HELP = f"At most {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON; integers within 64 bits."
+FREE_JSON_HELP = f"At most {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON."
 
 
 # --- mission tree nodes ---------------------------------------------------------------------------------
@@ -72,8 +74,11 @@ class ActionNodeSerializer(StrictSerializer):
     action_type = JsonStringField(help_text="The robot's name for the action, e.g. dummy_action.")
     action_parameters = serializers.DictField(
         default=dict,
-        validators=[validate_free_json],
-        help_text=f"Parameters of the action; values keep their JSON types. {FREE_JSON_HELP}",
+        validators=[validate_free_json, validate_int64],
+        help_text=(
+            f"Parameters of the action; values keep their JSON types. {FREE_JSON_HELP} Integers fit in "
+            "64 bits."
+        ),
     )
 
 
@@ -188,12 +193,27 @@ class RouteUpdatesField(serializers.DictField):
         return super().to_internal_value(data)
 
 
-def schema_node_kinds(result: dict, generator: Any, request: Any, public: bool) -> dict:
-    """drf-spectacular hook: a node has exactly one kind, which properties alone cannot say. oneOf over
-    the kinds can: the branch of a kind matches when that kind is present and not null, so exactly one
-    branch matches when exactly one kind is given (the others absent or null)."""
-    node = result["components"]["schemas"]["MissionNodeRequest"]
-    node["oneOf"] = [{"required": [kind], "properties": {kind: {"type": "object"}}} for kind in NODE_KINDS]
+def schema_constraints(result: dict, generator: Any, request: Any, public: bool) -> dict:
+    """drf-spectacular hook: what the mission serializers and filters enforce but cannot state themselves.
+
+    A node has exactly one kind: oneOf over the kinds says it, as the branch of a kind matches when that
+    kind is present and not null, so exactly one branch matches when exactly one kind is given (the others
+    absent or null). Nested lists (the tree, a route's waypoints) get their bounds, and most_recent its
+    range.
+    """
+    schemas = result["components"]["schemas"]
+    schemas["MissionNodeRequest"]["oneOf"] = [
+        {"required": [kind], "properties": {kind: {"type": "object"}}} for kind in NODE_KINDS
+    ]
+    schemas["MissionCreateRequest"]["properties"]["mission_tree"].update(
+        minItems=1, maxItems=settings.API_MAX_TREE_NODES
+    )
+    schemas["RouteNodeRequest"]["properties"]["waypoints"].update(
+        minItems=1, maxItems=settings.API_MAX_WAYPOINTS
+    )
+    for parameter in result["paths"]["/mission"]["get"]["parameters"]:
+        if parameter["name"] == "most_recent":
+            parameter["schema"].update(minimum=0, maximum=MOST_RECENT_MAX)
     return result
 
 
