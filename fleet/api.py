@@ -4,7 +4,7 @@ serializer building blocks every app's API shares, and the health endpoint."""
 import base64
 import json
 import uuid
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from contextlib import suppress
 from functools import cache
 from typing import Any, TypeVar
@@ -17,6 +17,7 @@ from django.core.exceptions import ValidationError as DjangoValidationError
 from django.core.validators import RegexValidator
 from django.db.models import Model, QuerySet
 from django.forms.utils import ErrorDict
+from django.http import HttpRequest, HttpResponse, JsonResponse
 from drf_spectacular.utils import (
     OpenApiExample,
     OpenApiResponse,
@@ -88,6 +89,24 @@ class QueryValidationError(ValidationError):
                 for field, field_errors in errors.as_data().items()
             }
         )
+
+
+def body_length_middleware(get_response: Callable[[HttpRequest], HttpResponse]) -> Callable:
+    """Refuse a body sent without Content-Length (chunked): Django reads no more of a body than its
+    Content-Length says, so the API would take a chunked body for none at all and, say, create a robot
+    with a random name instead of the one sent."""
+
+    def middleware(request: HttpRequest) -> HttpResponse:
+        if "chunked" in request.META.get("HTTP_TRANSFER_ENCODING", "").lower():
+            error = InputError("A body needs a Content-Length header.", type="length_required").error
+            return JsonResponse(
+                {"detail": [error]},
+                status=status.HTTP_400_BAD_REQUEST,
+                json_dumps_params={"separators": (",", ":")},
+            )
+        return get_response(request)
+
+    return middleware
 
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
@@ -286,13 +305,17 @@ def validate_int64(value: Any) -> None:
 
 
 class StrictFilterSet(filters.FilterSet):
-    """Query filters that refuse an empty value (`?state=`), which django-filter would take as no filter."""
+    """Query filters that refuse an empty value (`?state=`), which django-filter would take as no filter,
+    and a value with a NUL, which some form fields let through and PostgreSQL cannot compare."""
 
     def is_valid(self) -> bool:
         for name in self.filters:
             values = self.data.getlist(name) if hasattr(self.data, "getlist") else [self.data.get(name)]
             if "" in values:
                 self.form.add_error(name, forms.ValidationError("Must not be empty.", code="blank"))
+            elif any(isinstance(value, str) and "\x00" in value for value in values):
+                error = forms.ValidationError("Must not contain NUL characters.", code="null_characters")
+                self.form.add_error(name, error)
         return super().is_valid()
 
 

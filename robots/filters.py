@@ -38,7 +38,7 @@ class StrictBooleanFilter(filters.BooleanFilter):
 
 class AnyValueMultipleField(forms.MultipleChoiceField):
     """A repeated query parameter (`?names=a&names=b`) whose values are not limited to a list of choices,
-    at most FLEET_API_MAX_FILTER_VALUES of them, none with a NUL (PostgreSQL cannot compare it)."""
+    at most FLEET_API_MAX_FILTER_VALUES of them."""
 
     def valid_value(self, value: str) -> bool:
         return True
@@ -49,8 +49,6 @@ class AnyValueMultipleField(forms.MultipleChoiceField):
             raise forms.ValidationError(
                 f"At most {settings.API_MAX_FILTER_VALUES} values, not {len(value)}.", code="max_length"
             )
-        if any("\x00" in item for item in value):
-            raise forms.ValidationError("Must not contain NUL characters.", code="null_characters")
 
 
 class ValuesInFilter(filters.MultipleChoiceFilter):
