@@ -159,8 +159,9 @@ API_MAX_PARAMETERS_BYTES = env_int("FLEET_API_MAX_PARAMETERS_BYTES", 65_536)
 API_MAX_TEXT_LENGTH = env_int("FLEET_API_MAX_TEXT_LENGTH", 2048)
 API_MAX_LABELS = env_int("FLEET_API_MAX_LABELS", 100)
 API_MAX_FILTER_VALUES = env_int("FLEET_API_MAX_FILTER_VALUES", 500)
-# Query parameters Django parses at most: the longest filter list plus room for every other filter.
-DATA_UPLOAD_MAX_NUMBER_FIELDS = API_MAX_FILTER_VALUES + 100
+# Query (and admin form) fields Django parses at most: its default, or the longest filter list plus room
+# for every other filter.
+DATA_UPLOAD_MAX_NUMBER_FIELDS = max(1000, API_MAX_FILTER_VALUES + 100)
 
 # --- Redis and Celery -----------------------------------------------------------------------------
 REDIS_URL = env_str("FLEET_REDIS_URL", "redis://127.0.0.1:6379/0")
