@@ -124,9 +124,9 @@ class RobotBatterySerializer(serializers.Serializer):
 
 
 class RobotVda5050Serializer(serializers.Serializer):
-    interface_name = JsonStringField()
-    manufacturer = JsonStringField()
-    serial_number = JsonStringField()
+    interface_name = serializers.CharField()
+    manufacturer = serializers.CharField()
+    serial_number = serializers.CharField()
     version = serializers.ChoiceField(source="protocol_version", choices=ProtocolVersion.choices)
     instant_actions_key = serializers.ChoiceField(choices=InstantActionsKey.choices)
 
@@ -137,8 +137,8 @@ class SoftwareVersionSerializer(serializers.Serializer):
 
 
 class HardwareVersionSerializer(serializers.Serializer):
-    manufacturer = JsonStringField(default="", help_text="From the robot's state messages.")
-    serial_number = JsonStringField(default="", help_text="From the robot's state messages.")
+    manufacturer = serializers.CharField(default="", help_text="From the robot's state messages.")
+    serial_number = serializers.CharField(default="", help_text="From the robot's state messages.")
 
 
 class FactsheetSerializer(serializers.Serializer):
