@@ -198,19 +198,20 @@ def schema_constraints(result: dict, generator: Any, request: Any, public: bool)
 
     A node has exactly one kind: oneOf over the kinds says it, as the branch of a kind matches when that
     kind is present and not null, so exactly one branch matches when exactly one kind is given (the others
-    absent or null). Nested lists (the tree, a route's waypoints) get their bounds, and most_recent its
-    range.
+    absent or null). Nested lists (the tree, a route's waypoints) and route updates get their bounds, and
+    most_recent its range.
     """
     schemas = result["components"]["schemas"]
     schemas["MissionNodeRequest"]["oneOf"] = [
         {"required": [kind], "properties": {kind: {"type": "object"}}} for kind in NODE_KINDS
     ]
-    schemas["MissionCreateRequest"]["properties"]["mission_tree"].update(
-        minItems=1, maxItems=settings.API_MAX_TREE_NODES
-    )
-    schemas["RouteNodeRequest"]["properties"]["waypoints"].update(
-        minItems=1, maxItems=settings.API_MAX_WAYPOINTS
-    )
+    mission = schemas["MissionCreateRequest"]["properties"]
+    mission["mission_tree"].update(minItems=1, maxItems=settings.API_MAX_TREE_NODES)
+    mission["update_nodes"]["maxProperties"] = settings.API_MAX_TREE_NODES
+    update = result["paths"]["/mission/{name}/update"]["post"]["requestBody"]["content"]["application/json"]
+    update["schema"]["maxProperties"] = settings.API_MAX_TREE_NODES
+    waypoints = schemas["RouteNodeRequest"]["properties"]["waypoints"]
+    waypoints.update(minItems=1, maxItems=settings.API_MAX_WAYPOINTS)
     for parameter in result["paths"]["/mission"]["get"]["parameters"]:
         if parameter["name"] == "most_recent":
             parameter["schema"].update(minimum=0, maximum=MOST_RECENT_MAX)

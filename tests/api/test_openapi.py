@@ -186,6 +186,9 @@ def test_the_schema_states_the_limits(schema):
         settings.API_MAX_TREE_NODES,
     )
     assert schemas["RouteNodeRequest"]["properties"]["waypoints"]["maxItems"] == settings.API_MAX_WAYPOINTS
+    update = schema["paths"]["/mission/{name}/update"]["post"]["requestBody"]["content"]["application/json"]
+    assert update["schema"]["maxProperties"] == settings.API_MAX_TREE_NODES
+    assert mission["update_nodes"]["maxProperties"] == settings.API_MAX_TREE_NODES
     assert (
         schemas["ActionNodeRequest"]["properties"]["action_type"]["maxLength"] == settings.API_MAX_TEXT_LENGTH
     )
