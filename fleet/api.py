@@ -2,16 +2,22 @@
 serializer building blocks every app's API shares, and the health endpoint."""
 
 import base64
+import json
 import uuid
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from contextlib import suppress
 from functools import cache
 from typing import Any, TypeVar
 
+import django_filters as filters
+from django import forms
+from django.conf import settings
+from django.core.exceptions import RequestDataTooBig, TooManyFieldsSent
 from django.core.exceptions import ValidationError as DjangoValidationError
 from django.core.validators import RegexValidator
 from django.db.models import Model, QuerySet
 from django.forms.utils import ErrorDict
+from django.http import HttpRequest, HttpResponse, JsonResponse
 from drf_spectacular.utils import (
     OpenApiExample,
     OpenApiResponse,
@@ -26,6 +32,8 @@ from rest_framework.response import Response
 from rest_framework.settings import api_settings
 from rest_framework.views import APIView
 from rest_framework.views import exception_handler as drf_exception_handler
+
+from fleet.parsers import InputError
 
 M = TypeVar("M", bound=Model)
 
@@ -83,8 +91,38 @@ class QueryValidationError(ValidationError):
         )
 
 
+def body_length_middleware(get_response: Callable[[HttpRequest], HttpResponse]) -> Callable:
+    """Refuse a body sent without Content-Length (chunked): Django reads no more of a body than its
+    Content-Length says, so the API would take a chunked body for none at all and, say, create a robot
+    with a random name instead of the one sent."""
+
+    def middleware(request: HttpRequest) -> HttpResponse:
+        if "chunked" in request.META.get("HTTP_TRANSFER_ENCODING", "").lower():
+            error = InputError("A body needs a Content-Length header.", type="length_required").error
+            return JsonResponse(
+                {"detail": [error]},
+                status=status.HTTP_400_BAD_REQUEST,
+                json_dumps_params={"separators": (",", ":")},
+            )
+        return get_response(request)
+
+    return middleware
+
+
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
     """Every error body of the API: the reference's shapes, and 400 (not 422 or 415) for invalid input."""
+    if isinstance(exc, RequestDataTooBig):
+        exc = InputError(
+            f"The body is larger than {settings.API_MAX_BODY_BYTES} bytes.", type="body_too_large"
+        )
+    elif isinstance(exc, TooManyFieldsSent):
+        exc = InputError(
+            f"More than {settings.DATA_UPLOAD_MAX_NUMBER_FIELDS} query parameters.",
+            type="too_many_parameters",
+            loc=("query",),
+        )
+    if isinstance(exc, InputError):
+        return Response({"detail": [exc.error]}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, UsageError):
         return Response({"message": exc.message, "error_code": "USAGE"}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, ObjectError):
@@ -154,9 +192,14 @@ def object_name_for_create(*, name: str | None, prefix: str | None, what: str) -
 # --- rows ---------------------------------------------------------------------------------------------
 
 
+def object_name_valid(name: str) -> bool:
+    return len(name) <= OBJECT_NAME_MAX_LENGTH and object_name_validator.regex.search(name) is not None
+
+
 def object_get(queryset: QuerySet[M], *, alias: str, name: str, to_change: bool = False) -> M:
-    """The object called `name`, or the reference's 400 (worded differently for PUT and DELETE)."""
-    obj = queryset.filter(pk=name).first()
+    """The object called `name`, or the reference's 400 (worded differently for PUT and DELETE). A name no
+    object can have is not looked up: it may hold what PostgreSQL refuses in text (NUL)."""
+    obj = queryset.filter(pk=name).first() if object_name_valid(name) else None
     if obj is None:
         raise ObjectError.not_found_to_change(name) if to_change else ObjectError.not_found(alias, name)
     return obj
@@ -173,15 +216,107 @@ def lock_row(obj: M) -> M:
 # --- serializer building blocks ----------------------------------------------------------------------
 
 
+# Durations (timeouts) in seconds at most: about 31 years, far inside what Python's timedelta and
+# PostgreSQL's interval hold, so no arithmetic on a stored duration overflows.
+MAX_SECONDS = 1e9
+# Integers in action parameters fit what the VDA 5050 encoder writes.
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+
+
 class NumberField(serializers.FloatField):
-    """A float that must be finite: NaN and infinity (JSON `1e999` parses as infinity) are no valid input."""
+    """A JSON number that must be finite: NaN and infinity (JSON `1e999` parses as infinity) are no valid
+    input, nor are strings and booleans (the schema says number; no coercion)."""
 
     default_error_messages = {"invalid": "A finite number is required."}
+
+    def to_internal_value(self, data: Any) -> float:
+        if isinstance(data, bool) or not isinstance(data, int | float):
+            self.fail("invalid")
+        return super().to_internal_value(data)
+
+
+class JsonIntegerField(serializers.IntegerField):
+    """A JSON integer (a number without fraction, 5.0 included); no strings or booleans."""
+
+    def to_internal_value(self, data: Any) -> int:
+        if isinstance(data, bool) or not isinstance(data, int | float):
+            self.fail("invalid")
+        return super().to_internal_value(data)
+
+
+class JsonBooleanField(serializers.BooleanField):
+    """A JSON true or false; no strings ("yes") or numbers (1)."""
+
+    def to_internal_value(self, data: Any) -> bool:
+        if not isinstance(data, bool):
+            self.fail("invalid")
+        return data
+
+
+class JsonStringField(serializers.CharField):
+    """A JSON string kept as sent: numbers are not turned into text, spaces are not trimmed (as in the
+    reference); at most FLEET_API_MAX_TEXT_LENGTH characters unless `max_length` says less. DRF already
+    refuses NUL characters and unpaired surrogates, which PostgreSQL cannot store."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("trim_whitespace", False)
+        kwargs.setdefault("max_length", settings.API_MAX_TEXT_LENGTH)
+        super().__init__(**kwargs)
+
+    def to_internal_value(self, data: Any) -> str:
+        if not isinstance(data, str):
+            self.fail("invalid")
+        return super().to_internal_value(data)
 
 
 def validate_positive(value: float) -> None:
     if value <= 0:
         raise serializers.ValidationError("Must be greater than 0.", code="greater_than")
+
+
+def validate_free_json(value: Any) -> None:
+    """Free-form JSON (action parameters, notify data): finite numbers only (JSON `1e999` is infinity,
+    which jsonb cannot hold), at most FLEET_API_MAX_PARAMETERS_BYTES as JSON."""
+    try:
+        text = json.dumps(value, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+    except ValueError:
+        raise serializers.ValidationError("Numbers must be finite.", code="finite_number") from None
+    size = len(text.encode())
+    if size > settings.API_MAX_PARAMETERS_BYTES:
+        raise serializers.ValidationError(
+            f"Larger than {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON ({size}).", code="too_large"
+        )
+
+
+def validate_int64(value: Any) -> None:
+    """Integers anywhere in `value` fit in 64 bits, the range of the VDA 5050 encoder (orjson)."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, int) and not isinstance(item, bool) and not INT64_MIN <= item <= INT64_MAX:
+            raise serializers.ValidationError(f"Integer {item} does not fit in 64 bits.", code="int64")
+
+
+# --- query filters -------------------------------------------------------------------------------------
+
+
+class StrictFilterSet(filters.FilterSet):
+    """Query filters that refuse an empty value (`?state=`), which django-filter would take as no filter,
+    and a value with a NUL, which some form fields let through and PostgreSQL cannot compare."""
+
+    def is_valid(self) -> bool:
+        for name in self.filters:
+            values = self.data.getlist(name) if hasattr(self.data, "getlist") else [self.data.get(name)]
+            if "" in values:
+                self.form.add_error(name, forms.ValidationError("Must not be empty.", code="blank"))
+            elif any(isinstance(value, str) and "\x00" in value for value in values):
+                error = forms.ValidationError("Must not contain NUL characters.", code="null_characters")
+                self.form.add_error(name, error)
+        return super().is_valid()
 
 
 class StrictSerializer(serializers.Serializer):
@@ -240,7 +375,7 @@ class SpecSerializer(StrictSerializer):
 class ObjectNameSerializer(serializers.Serializer):
     """The `name` or `prefix` of a create body."""
 
-    name = serializers.CharField(
+    name = JsonStringField(
         required=False,
         allow_null=True,
         default=None,
@@ -251,7 +386,7 @@ class ObjectNameSerializer(serializers.Serializer):
             f"{GENERATED_NAME_LENGTH} characters is used."
         ),
     )
-    prefix = serializers.CharField(
+    prefix = JsonStringField(
         required=False,
         allow_null=True,
         default=None,
@@ -271,9 +406,7 @@ class Pose2DSerializer(StrictSerializer):
     x = NumberField(default=0.0, help_text="x coordinate in metres.")
     y = NumberField(default=0.0, help_text="y coordinate in metres.")
     theta = NumberField(default=0.0, help_text="Orientation in radians.")
-    map_id = serializers.CharField(
-        default="", allow_blank=True, trim_whitespace=False, help_text="Map the pose is on."
-    )
+    map_id = JsonStringField(default="", allow_blank=True, help_text="Map the pose is on.")
     allowedDeviationXY = NumberField(
         default=DEFAULT_ALLOWED_DEVIATION_XY,
         min_value=0.0,

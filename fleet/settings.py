@@ -51,6 +51,7 @@ INSTALLED_APPS = [
 
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
+    "fleet.api.body_length_middleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -116,7 +117,7 @@ REST_FRAMEWORK = {
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
     "DEFAULT_FILTER_BACKENDS": ["django_filters.rest_framework.DjangoFilterBackend"],
     "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"],
-    "DEFAULT_PARSER_CLASSES": ["rest_framework.parsers.JSONParser"],
+    "DEFAULT_PARSER_CLASSES": ["fleet.parsers.JSONParser"],
     "DEFAULT_AUTHENTICATION_CLASSES": [],
     "DEFAULT_PERMISSION_CLASSES": [],
     "UNAUTHENTICATED_USER": None,
@@ -135,11 +136,32 @@ SPECTACULAR_SETTINGS = {
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
     "REDOC_DIST": "SIDECAR",
     "COMPONENT_SPLIT_REQUEST": True,
+    # The default hook, then what each app's serializers and filters enforce but cannot state themselves.
+    "POSTPROCESSING_HOOKS": [
+        "drf_spectacular.hooks.postprocess_schema_enums",
+        "robots.api.serializers.schema_constraints",
+        "missions.api.serializers.schema_constraints",
+    ],
     "ENUM_NAME_OVERRIDES": {
         "RobotStateEnum": "robots.choices.RobotState",
         "MissionStateEnum": "missions.choices.MissionState",
     },
 }
+
+# --- API limits: bad input is a 400 that says which limit, never a worker's time or memory -------------
+# Read at start (the schema at /openapi.json states them). README.md, "Limits", has what each bounds.
+API_MAX_BODY_BYTES = env_int("FLEET_API_MAX_BODY_BYTES", 1_048_576)
+DATA_UPLOAD_MAX_MEMORY_SIZE = API_MAX_BODY_BYTES
+API_MAX_JSON_DEPTH = env_int("FLEET_API_MAX_JSON_DEPTH", 32)
+API_MAX_TREE_NODES = env_int("FLEET_API_MAX_TREE_NODES", 1000)
+API_MAX_WAYPOINTS = env_int("FLEET_API_MAX_WAYPOINTS", 1000)
+API_MAX_PARAMETERS_BYTES = env_int("FLEET_API_MAX_PARAMETERS_BYTES", 65_536)
+API_MAX_TEXT_LENGTH = env_int("FLEET_API_MAX_TEXT_LENGTH", 2048)
+API_MAX_LABELS = env_int("FLEET_API_MAX_LABELS", 100)
+API_MAX_FILTER_VALUES = env_int("FLEET_API_MAX_FILTER_VALUES", 500)
+# Query (and admin form) fields Django parses at most: its default, or the longest filter list plus room
+# for every other filter.
+DATA_UPLOAD_MAX_NUMBER_FIELDS = max(1000, API_MAX_FILTER_VALUES + 100)
 
 # --- Redis and Celery -----------------------------------------------------------------------------
 REDIS_URL = env_str("FLEET_REDIS_URL", "redis://127.0.0.1:6379/0")

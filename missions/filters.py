@@ -4,15 +4,19 @@ import django_filters as filters
 from django import forms
 from django.db.models import F, QuerySet
 
+from fleet.api import StrictFilterSet
 from missions.choices import MissionState
 from missions.models import Mission
+
+# most_recent is an SQL LIMIT, a PostgreSQL bigint.
+MOST_RECENT_MAX = 2**63 - 1
 
 
 class IntegerFilter(filters.NumberFilter):
     field_class = forms.IntegerField
 
 
-class MissionFilter(filters.FilterSet):
+class MissionFilter(StrictFilterSet):
     state = filters.ChoiceFilter(choices=MissionState.choices, help_text="Missions in this state.")
     started_after = filters.DateTimeFilter(
         field_name="start_timestamp",
@@ -29,6 +33,7 @@ class MissionFilter(filters.FilterSet):
     most_recent = IntegerFilter(
         method="filter_most_recent",
         min_value=0,
+        max_value=MOST_RECENT_MAX,
         help_text=(
             "The N most recent missions by start_timestamp, newest first; missions that have not started "
             "(no start_timestamp) come first, as in the reference."

@@ -4,8 +4,10 @@ from typing import Any
 
 import django_filters as filters
 from django import forms
+from django.conf import settings
 from django.db.models import QuerySet
 
+from fleet.api import StrictFilterSet
 from robots.choices import AgvClass, RobotState
 from robots.models import Robot
 
@@ -35,10 +37,18 @@ class StrictBooleanFilter(filters.BooleanFilter):
 
 
 class AnyValueMultipleField(forms.MultipleChoiceField):
-    """A repeated query parameter (`?names=a&names=b`) whose values are not limited to a list of choices."""
+    """A repeated query parameter (`?names=a&names=b`) whose values are not limited to a list of choices,
+    at most FLEET_API_MAX_FILTER_VALUES of them."""
 
     def valid_value(self, value: str) -> bool:
         return True
+
+    def validate(self, value: list[str]) -> None:
+        super().validate(value)
+        if len(value) > settings.API_MAX_FILTER_VALUES:
+            raise forms.ValidationError(
+                f"At most {settings.API_MAX_FILTER_VALUES} values, not {len(value)}.", code="max_length"
+            )
 
 
 class ValuesInFilter(filters.MultipleChoiceFilter):
@@ -56,7 +66,7 @@ class FloatFilter(filters.NumberFilter):
     field_class = forms.FloatField
 
 
-class RobotFilter(filters.FilterSet):
+class RobotFilter(StrictFilterSet):
     min_battery = FloatFilter(
         field_name="battery_level",
         lookup_expr="gte",
@@ -72,7 +82,10 @@ class RobotFilter(filters.FilterSet):
     position_initialized = StrictBooleanFilter(help_text="Robots whose position is (or is not) initialized.")
     names = ValuesInFilter(
         field_name="name",
-        help_text="Robots with one of these names; repeat the parameter: ?names=a&names=b.",
+        help_text=(
+            "Robots with one of these names; repeat the parameter: ?names=a&names=b (at most "
+            f"{settings.API_MAX_FILTER_VALUES} times)."
+        ),
     )
     robot_type = filters.ChoiceFilter(
         choices=[*AgvClass.choices, *((legacy, legacy) for legacy in LEGACY_ROBOT_TYPES)],

@@ -5,25 +5,36 @@ from datetime import datetime
 from typing import Any
 from urllib.parse import urlsplit
 
+from django.conf import settings
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
 from fleet.api import (
+    MAX_SECONDS,
     OBJECT_NAME_MAX_LENGTH,
+    JsonBooleanField,
+    JsonIntegerField,
+    JsonStringField,
     NumberField,
     ObjectNameSerializer,
     Pose2DSerializer,
     SpecSerializer,
     StrictSerializer,
     object_name_validator,
+    validate_free_json,
+    validate_int64,
     validate_positive,
 )
 from missions.choices import FailureCategory, Lifecycle, MissionState
+from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
 from missions.vocabulary import NodeKind
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
 DEFAULT_NOTIFY_TIMEOUT = 30
+# A notify call waits at most a day: longer is no notification.
+MAX_NOTIFY_TIMEOUT = 86_400
+FREE_JSON_HELP = f"At most {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON."
 
 
 # --- mission tree nodes ---------------------------------------------------------------------------------
@@ -32,7 +43,12 @@ DEFAULT_NOTIFY_TIMEOUT = 30
 class RouteNodeSerializer(StrictSerializer):
     """Drive through a list of waypoints (one VDA 5050 order); the last one must be reached."""
 
-    waypoints = Pose2DSerializer(many=True, allow_empty=False, help_text="At least one Pose2D.")
+    waypoints = Pose2DSerializer(
+        many=True,
+        allow_empty=False,
+        max_length=settings.API_MAX_WAYPOINTS,
+        help_text=f"At least one Pose2D, at most {settings.API_MAX_WAYPOINTS}.",
+    )
 
 
 class MoveNodeSerializer(StrictSerializer):
@@ -55,19 +71,29 @@ class MoveNodeSerializer(StrictSerializer):
 class ActionNodeSerializer(StrictSerializer):
     """Run an action on the robot (a VDA 5050 order whose only node carries the action)."""
 
-    action_type = serializers.CharField(help_text="The robot's name for the action, e.g. dummy_action.")
+    action_type = JsonStringField(help_text="The robot's name for the action, e.g. dummy_action.")
     action_parameters = serializers.DictField(
-        default=dict, help_text="Parameters of the action; values keep their JSON types."
+        default=dict,
+        validators=[validate_free_json, validate_int64],
+        help_text=(
+            f"Parameters of the action; values keep their JSON types. {FREE_JSON_HELP} Integers fit in "
+            "64 bits."
+        ),
     )
 
 
 class NotifyNodeSerializer(StrictSerializer):
     """Make an HTTP POST of `json_data` to `url`; the node succeeds if the call does."""
 
-    url = serializers.CharField(help_text="http:// or https:// URL to POST to.")
-    json_data = serializers.DictField(default=dict, help_text="JSON body of the POST.")
-    timeout = serializers.IntegerField(
-        default=DEFAULT_NOTIFY_TIMEOUT, min_value=1, help_text="Seconds to wait for the response."
+    url = JsonStringField(help_text="http:// or https:// URL to POST to.")
+    json_data = serializers.DictField(
+        default=dict, validators=[validate_free_json], help_text=f"JSON body of the POST. {FREE_JSON_HELP}"
+    )
+    timeout = JsonIntegerField(
+        default=DEFAULT_NOTIFY_TIMEOUT,
+        min_value=1,
+        max_value=MAX_NOTIFY_TIMEOUT,
+        help_text="Seconds to wait for the response.",
     )
 
     def validate_url(self, url: str) -> str:
@@ -82,7 +108,7 @@ class NotifyNodeSerializer(StrictSerializer):
 class ConstantNodeSerializer(StrictSerializer):
     """Succeed (or fail, with success false) at once; useful in selectors and for tests."""
 
-    success = serializers.BooleanField(default=True)
+    success = JsonBooleanField(default=True)
 
 
 # Composite nodes have no parameters: their body is an empty object.
@@ -119,7 +145,7 @@ def node_description(kind: str) -> str:
 class MissionNodeSerializer(StrictSerializer):
     """One node of a mission tree: a name, a parent, and exactly one kind."""
 
-    name = serializers.CharField(
+    name = JsonStringField(
         required=False,
         allow_null=True,
         default=None,
@@ -127,8 +153,11 @@ class MissionNodeSerializer(StrictSerializer):
         validators=[object_name_validator],
         help_text='Unique in the tree; "root" is reserved. Default: its index in mission_tree ("0", "1").',
     )
-    parent = serializers.CharField(
-        default="root", help_text='A selector or sequence that appears earlier in mission_tree, or "root".'
+    parent = JsonStringField(
+        default="root",
+        max_length=OBJECT_NAME_MAX_LENGTH,
+        validators=[object_name_validator],
+        help_text='A selector or sequence that appears earlier in mission_tree, or "root".',
     )
     selector = SelectorNodeSerializer(
         required=False, allow_null=True, help_text=node_description(NodeKind.SELECTOR)
@@ -150,16 +179,50 @@ class MissionNodeSerializer(StrictSerializer):
 
 
 class RouteUpdatesField(serializers.DictField):
-    """POST /mission/{name}/update body and spec.update_nodes: new waypoints per route node name."""
+    """POST /mission/{name}/update body and spec.update_nodes: new waypoints per route node name (at most
+    as many as a tree has nodes)."""
 
     child = RouteNodeSerializer()
+
+    def to_internal_value(self, data: Any) -> dict:
+        if isinstance(data, dict) and len(data) > settings.API_MAX_TREE_NODES:
+            raise serializers.ValidationError(
+                f"Ensure this field has no more than {settings.API_MAX_TREE_NODES} elements.",
+                code="max_length",
+            )
+        return super().to_internal_value(data)
+
+
+def schema_constraints(result: dict, generator: Any, request: Any, public: bool) -> dict:
+    """drf-spectacular hook: what the mission serializers and filters enforce but cannot state themselves.
+
+    A node has exactly one kind: oneOf over the kinds says it, as the branch of a kind matches when that
+    kind is present and not null, so exactly one branch matches when exactly one kind is given (the others
+    absent or null). Nested lists (the tree, a route's waypoints) and route updates get their bounds, and
+    most_recent its range.
+    """
+    schemas = result["components"]["schemas"]
+    schemas["MissionNodeRequest"]["oneOf"] = [
+        {"required": [kind], "properties": {kind: {"type": "object"}}} for kind in NODE_KINDS
+    ]
+    mission = schemas["MissionCreateRequest"]["properties"]
+    mission["mission_tree"].update(minItems=1, maxItems=settings.API_MAX_TREE_NODES)
+    mission["update_nodes"]["maxProperties"] = settings.API_MAX_TREE_NODES
+    update = result["paths"]["/mission/{name}/update"]["post"]["requestBody"]["content"]["application/json"]
+    update["schema"]["maxProperties"] = settings.API_MAX_TREE_NODES
+    waypoints = schemas["RouteNodeRequest"]["properties"]["waypoints"]
+    waypoints.update(minItems=1, maxItems=settings.API_MAX_WAYPOINTS)
+    for parameter in result["paths"]["/mission"]["get"]["parameters"]:
+        if parameter["name"] == "most_recent":
+            parameter["schema"].update(minimum=0, maximum=MOST_RECENT_MAX)
+    return result
 
 
 # --- the mission -------------------------------------------------------------------------------------------
 
 
 class MissionSpecSerializer(SpecSerializer):
-    robot = serializers.CharField(
+    robot = JsonStringField(
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
         help_text="Name of the robot to run the mission; it need not exist yet.",
@@ -167,10 +230,15 @@ class MissionSpecSerializer(SpecSerializer):
     mission_tree = MissionNodeSerializer(
         many=True,
         allow_empty=False,
-        help_text="The nodes of the tree under the implicit root sequence; each parent before its children.",
+        max_length=settings.API_MAX_TREE_NODES,
+        help_text=(
+            "The nodes of the tree under the implicit root sequence; each parent before its children; at "
+            f"most {settings.API_MAX_TREE_NODES}."
+        ),
     )
     timeout = NumberField(
         default=Mission._meta.get_field("timeout").get_default(),
+        max_value=MAX_SECONDS,
         validators=[validate_positive],
         help_text="Seconds the mission may run before it fails.",
     )
@@ -179,7 +247,7 @@ class MissionSpecSerializer(SpecSerializer):
         default=None,
         help_text="A mission still queued at its deadline never starts, one still running fails (DEADLINE).",
     )
-    needs_canceled = serializers.BooleanField(default=False, help_text="Set by POST /mission/{name}/cancel.")
+    needs_canceled = JsonBooleanField(default=False, help_text="Set by POST /mission/{name}/cancel.")
     update_nodes = RouteUpdatesField(
         allow_null=True,
         default=None,

@@ -7,7 +7,10 @@ from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
 from fleet.api import (
+    MAX_SECONDS,
     OBJECT_NAME_MAX_LENGTH,
+    JsonBooleanField,
+    JsonStringField,
     NumberField,
     ObjectNameSerializer,
     Pose2DSerializer,
@@ -40,19 +43,19 @@ class BatterySpecSerializer(StrictSerializer):
 class Vda5050IdentitySerializer(StrictSerializer):
     """How the robot is reached: topics <interface_name>/v<major>/<manufacturer>/<serial_number>/<topic>."""
 
-    interface_name = serializers.CharField(
+    interface_name = JsonStringField(
         required=False,
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
         help_text=f"First topic level; default {settings.VDA5050_INTERFACE_NAME!r} (setting).",
     )
-    manufacturer = serializers.CharField(
+    manufacturer = JsonStringField(
         required=False,
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
         help_text=f"Default {settings.VDA5050_MANUFACTURER!r} (setting).",
     )
-    serial_number = serializers.CharField(
+    serial_number = JsonStringField(
         required=False,
         max_length=OBJECT_NAME_MAX_LENGTH,
         validators=[object_name_validator],
@@ -74,15 +77,19 @@ class RobotSpecSerializer(SpecSerializer):
     """The whole spec of a robot (PUT replaces it: omitted fields go back to their defaults)."""
 
     labels = serializers.ListField(
-        child=serializers.CharField(), default=list, help_text="Labels to group robots by (stored, unused)."
+        child=JsonStringField(),
+        default=list,
+        max_length=settings.API_MAX_LABELS,
+        help_text="Labels to group robots by (stored, unused).",
     )
     battery = BatterySpecSerializer(required=False)
     heartbeat_timeout = NumberField(
         default=_model_default("heartbeat_timeout"),
+        max_value=MAX_SECONDS,
         validators=[validate_positive],
         help_text="Seconds without a state message before the robot counts as offline.",
     )
-    switch_teleop = serializers.BooleanField(
+    switch_teleop = JsonBooleanField(
         default=_model_default("switch_teleop"),
         help_text="true puts the robot in teleop, false takes it out.",
     )
@@ -91,6 +98,16 @@ class RobotSpecSerializer(SpecSerializer):
 
 class RobotCreateSerializer(ObjectNameSerializer, RobotSpecSerializer):
     """A robot's spec plus the name (or name prefix) of the new robot."""
+
+
+def schema_constraints(result: dict, generator: Any, request: Any, public: bool) -> dict:
+    """drf-spectacular hook: what the robot filters enforce but cannot state themselves: how many `names`
+    a list may ask for, none empty or with a NUL."""
+    for parameter in result["paths"]["/robot"]["get"]["parameters"]:
+        if parameter["name"] == "names":
+            parameter["schema"].update(maxItems=settings.API_MAX_FILTER_VALUES)
+            parameter["schema"]["items"].update(minLength=1, pattern="^[^\\u0000]*$")
+    return result
 
 
 class TeleopQuerySerializer(serializers.Serializer):

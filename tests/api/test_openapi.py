@@ -3,11 +3,15 @@
 import json
 import re
 
+import jsonschema
 import pytest
+from django.conf import settings
 from drf_spectacular.drainage import GENERATOR_STATS
 from drf_spectacular.generators import SchemaGenerator
 from drf_spectacular.validation import validate_schema
 
+from fleet.api import MAX_SECONDS, OBJECT_NAME_MAX_LENGTH
+from missions.api.serializers import MAX_NOTIFY_TIMEOUT
 from tests.api.readme import README_MISSIONS, README_ROBOT
 
 ENDPOINTS = {
@@ -155,3 +159,47 @@ def test_docs_render_swagger_ui_from_local_static_files(api):
     for script in scripts:
         assert script.startswith("/static/")
         assert api.get(script).status_code == 200
+
+
+def test_a_mission_node_has_exactly_one_kind_in_the_schema_too(schema):
+    """The server refuses a node with two kinds or none; the request schema says so with oneOf."""
+    node = schema["components"]["schemas"]["MissionNodeRequest"]
+    one_kind = {"oneOf": node["oneOf"]}
+    route = {"waypoints": [{"x": 1}]}
+
+    jsonschema.validate({"name": "a", "route": route}, one_kind)
+    jsonschema.validate({"route": route, "action": None, "selector": None}, one_kind)
+    for invalid in ({"route": route, "constant": {}}, {"name": "a"}, {"route": None, "move": None}):
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate(invalid, one_kind)
+
+
+def test_the_schema_states_the_limits(schema):
+    schemas = schema["components"]["schemas"]
+    mission = schemas["MissionCreateRequest"]["properties"]
+    robot = schemas["RobotCreateRequest"]["properties"]
+    most_recent = query_parameters(schema["paths"]["/mission"]["get"])["most_recent"]["schema"]
+    names = query_parameters(schema["paths"]["/robot"]["get"])["names"]["schema"]
+
+    assert (mission["mission_tree"]["minItems"], mission["mission_tree"]["maxItems"]) == (
+        1,
+        settings.API_MAX_TREE_NODES,
+    )
+    assert schemas["RouteNodeRequest"]["properties"]["waypoints"]["maxItems"] == settings.API_MAX_WAYPOINTS
+    update = schema["paths"]["/mission/{name}/update"]["post"]["requestBody"]["content"]["application/json"]
+    assert update["schema"]["maxProperties"] == settings.API_MAX_TREE_NODES
+    assert mission["update_nodes"]["maxProperties"] == settings.API_MAX_TREE_NODES
+    assert (
+        schemas["ActionNodeRequest"]["properties"]["action_type"]["maxLength"] == settings.API_MAX_TEXT_LENGTH
+    )
+    assert schemas["NotifyNodeRequest"]["properties"]["url"]["maxLength"] == settings.API_MAX_TEXT_LENGTH
+    assert schemas["NotifyNodeRequest"]["properties"]["timeout"]["maximum"] == MAX_NOTIFY_TIMEOUT
+    assert schemas["Pose2DRequest"]["properties"]["map_id"]["maxLength"] == settings.API_MAX_TEXT_LENGTH
+    assert mission["timeout"]["maximum"] == MAX_SECONDS
+    assert mission["robot"]["maxLength"] == OBJECT_NAME_MAX_LENGTH
+    assert robot["heartbeat_timeout"]["maximum"] == MAX_SECONDS
+    assert robot["labels"]["maxItems"] == settings.API_MAX_LABELS
+    assert robot["labels"]["items"]["maxLength"] == settings.API_MAX_TEXT_LENGTH
+    assert (most_recent["minimum"], most_recent["maximum"]) == (0, 2**63 - 1)
+    assert names["maxItems"] == settings.API_MAX_FILTER_VALUES
+    assert (names["items"]["minLength"], names["items"]["pattern"]) == (1, "^[^\\u0000]*$")
