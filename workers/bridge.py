@@ -357,9 +357,8 @@ class Bridge:
             if code in (livestate.REPLAYED, livestate.STALE):
                 reason = Ignored.REPLAYED if code == livestate.REPLAYED else Ignored.STALE
                 late[metrics.MESSAGES_IGNORED, received.kind.value, reason] += 1
-                self._drop_log.log(
-                    logging.INFO, received.kind, reason, received.name, "not newer than before"
-                )
+                where = f"robot {received.name}'s {received.kind}"
+                self._drop_log.log(logging.INFO, received.kind, reason, where, "not newer than the last")
             elif received.kind == Topic.STATE:
                 assert outcome is not None
                 self._stored_state(received, outcome, changed)
@@ -375,7 +374,8 @@ class Bridge:
                     self._store_factsheet(received)
                 except DatabaseError as exc:
                     late[metrics.MESSAGES_INVALID, received.kind.value, Drop.REFUSED] += 1
-                    self._drop_log.log(logging.WARNING, received.kind, Drop.REFUSED, received.name, str(exc))
+                    where = f"robot {received.name}'s {received.kind}"
+                    self._drop_log.log(logging.WARNING, received.kind, Drop.REFUSED, where, str(exc))
         if late:
             counters = livestate.client().pipeline(transaction=False)
             for (counter, topic_label, reason), by in late.items():
