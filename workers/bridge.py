@@ -8,6 +8,8 @@ so that the sweep does not send it again. The bridge runs no step itself: it que
 step workers (`workers.steps.request_steps`), one request per batch of states. Several bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
+A message it cannot take is dropped and counted by reason (`Drop`), one older than the robot's last on its
+topic is ignored and counted (`Ignored`); either way the rest of the batch goes on (README, Metrics).
 """
 
 import logging
@@ -62,6 +64,7 @@ LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot w
 FORGET_STATUS_SECONDS = 60.0  # a robot silent this long is forgotten until it is heard again
 FAILURE_PAUSE_SECONDS = 1.0  # after an iteration failed (database or Redis unreachable)
 DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however many messages are dropped
+TOPIC_NAMES = frozenset(topic.value for topic in Topic)
 NUL_ESCAPE = b"\\u0000"  # how JSON writes a NUL character, which PostgreSQL stores in neither text nor jsonb
 STATUS_COLUMNS = (
     "battery_level",
@@ -78,7 +81,8 @@ JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages"})
 
 
 class Drop(StrEnum):
-    """Why a message was dropped unread: the `reason` of `messages_invalid` (README, Metrics)."""
+    """Why a message was dropped unread: the `reason` of `messages_invalid` (README, Metrics). The values
+    of vda5050.errors.PayloadProblem are among them."""
 
     TOPIC = "topic"  # not <interfaceName>/<vN>/<manufacturer>/<serialNumber>/<a topic the bridge reads>
     UNKNOWN_ROBOT = "unknown_robot"  # no robot has these topic levels
@@ -101,6 +105,8 @@ class Ignored(StrEnum):
 
 
 class Dropped(Exception):
+    """A message the bridge does not take, and why."""
+
     def __init__(self, reason: Drop, detail: str) -> None:
         super().__init__(detail)
         self.reason = reason
@@ -144,11 +150,8 @@ class DropLog:
         self._logged_at[key] = now
         left_out = self._left_out.pop(key, 0)
         more = f" ({left_out} more since the last such line)" if left_out else ""
-        logger.log(level, "%s message on %.200s (%s): %.300s%s", _verb(level), topic, reason, detail, more)
-
-
-def _verb(level: int) -> str:
-    return "dropped" if level >= logging.WARNING else "ignored"
+        verb = "dropped" if level >= logging.WARNING else "ignored"
+        logger.log(level, "%s message on %.200s (%s): %.300s%s", verb, topic, reason, detail, more)
 
 
 @dataclass
@@ -618,7 +621,7 @@ def _topic_label(topic: str) -> str:
     """The `topic` label of a message's counters: its last level if that names a VDA 5050 topic, else
     `other` (labels are few whatever arrives)."""
     last = topic.rsplit("/", 1)[-1]
-    return last if last in Topic._value2member_map_ else "other"
+    return last if last in TOPIC_NAMES else "other"
 
 
 def _order(message: State | Connection | Factsheet | Visualization) -> tuple[int, int] | None:
@@ -635,11 +638,11 @@ def _order(message: State | Connection | Factsheet | Visualization) -> tuple[int
 def _timestamp_ms(timestamp: str) -> int:
     try:
         moment = datetime.fromisoformat(timestamp.replace("Z", "+00:00"))
-        if moment.tzinfo is None:
-            moment = moment.replace(tzinfo=UTC)
-        return int(moment.timestamp() * 1000)
-    except (ValueError, OverflowError):
+    except ValueError:
         raise ProtocolError("timestamp", f"{timestamp!r} is not an ISO 8601 timestamp") from None
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    return int(moment.timestamp() * 1000)
 
 
 def _holds_nul(data: Any) -> bool:

@@ -10,15 +10,18 @@ from typing import Any
 
 import orjson
 import pytest
+from django.db import connection
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fleet import livestate
 from robots.models import Robot
 from tests.bridge.hostile import SUBSCRIBED, Case, corpus, history
-from tests.bridge.messages import state_message, step_requested, topic
+from tests.bridge.messages import connection_message, state_message, step_requested, topic
+from tests.bridge.rows import held
 from vda5050.codec import parse
 from vda5050.errors import ProtocolError
+from vda5050.models import ConnectionState
 from vda5050.topics import Topic
 from workers import bridge as bridge_module
 from workers import metrics
@@ -126,14 +129,11 @@ def test_the_corpus_has_every_class_on_every_topic() -> None:
 def test_a_replayed_disconnection_does_not_take_a_robot_offline_but_a_newer_one_does(
     bridge: Bridge, victim: Robot
 ) -> None:
-    connection_loss = history(victim.serial_number)[0]
-    assert connection_loss[0].endswith("/connection")
-
-    bridge.handle([connection_loss])
-
+    # The history: CONNECTIONBROKEN (headerId 1, at 1 s), then a state that brought the robot back.
+    bridge.handle([connection_message(victim, ConnectionState.CONNECTIONBROKEN, header_id=1, at=1.0)])
     assert Robot.objects.get(name=victim.name).online is True
-    will = orjson.loads(connection_loss[1]) | {"headerId": 2, "timestamp": "2026-03-01T12:00:05.000Z"}
-    bridge.handle([(connection_loss[0], orjson.dumps(will))])
+
+    bridge.handle([connection_message(victim, ConnectionState.CONNECTIONBROKEN, header_id=2, at=5.0)])
     assert Robot.objects.get(name=victim.name).online is False
 
 
@@ -141,16 +141,8 @@ def test_a_last_will_older_than_the_online_message_before_it_takes_the_robot_off
     bridge: Bridge, victim: Robot
 ) -> None:
     """The broker sends the will with the header the robot gave it on connecting, before its ONLINE."""
-    connection_topic = topic(victim, "connection")
-    will, online = (
-        orjson.loads(history(victim.serial_number)[0][1])
-        | {"headerId": 2, "timestamp": f"2026-03-01T12:00:0{s}Z"}
-        for s in (5, 6)
-    )
-    online |= {"headerId": 3, "connectionState": "ONLINE"}
-
-    bridge.handle([(connection_topic, orjson.dumps(online))])
-    bridge.handle([(connection_topic, orjson.dumps(will))])
+    bridge.handle([connection_message(victim, ConnectionState.ONLINE, header_id=3, at=6.0)])
+    bridge.handle([connection_message(victim, ConnectionState.CONNECTIONBROKEN, header_id=2, at=5.0)])
 
     assert Robot.objects.get(name=victim.name).online is False
 
@@ -159,21 +151,15 @@ def test_a_last_will_older_than_the_online_message_before_it_takes_the_robot_off
 def test_a_factsheet_the_database_refuses_is_counted_and_the_rest_of_the_batch_is_handled(
     bridge: Bridge, make_robot: MakeRobot
 ) -> None:
-    from tests.bridge.test_bridge import held
-
     robot, bystander = make_robot(), make_robot()
     bridge.directory.reload()
     factsheet = next(m for m in history(robot.serial_number) if m[0].endswith("/factsheet"))
     good = state_message(bystander)
     counters_before = counters()
 
-    with held("SELECT 1 FROM robots_robot WHERE name = %s FOR UPDATE NOWAIT", [robot.name]):
-        from django.db import connection
-
+    with held("SELECT 1 FROM robots_robot WHERE name = %s FOR UPDATE", [robot.name]):
         with connection.cursor() as cursor:
-            cursor.execute(
-                "SET lock_timeout = '50ms'"
-            )  # the row is held: the write fails, as PostgreSQL away
+            cursor.execute("SET lock_timeout = '50ms'")  # the write fails, as it would with PostgreSQL away
         bridge.handle([factsheet, good])
 
     assert counted(counters_before) == {field(metrics.MESSAGES_INVALID, "factsheet", Drop.REFUSED): 1}
