@@ -63,6 +63,9 @@ DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directo
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
 FORGET_STATUS_SECONDS = 60.0  # a robot silent this long is forgotten until it is heard again
 FAILURE_PAUSE_SECONDS = 1.0  # after an iteration failed (database or Redis unreachable)
+# A message timestamped further ahead of this host's clock is dropped: stored, it would make every message
+# the robot sends until then look older, and be ignored (a robot whose clock is this far off needs fixing).
+FUTURE_TOLERANCE_SECONDS = 300.0
 DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however many messages are dropped
 TOPIC_NAMES = frozenset(topic.value for topic in Topic)
 NUL_ESCAPE = b"\\u0000"  # how JSON writes a NUL character, which PostgreSQL stores in neither text nor jsonb
@@ -89,9 +92,10 @@ class Drop(StrEnum):
     TOO_LARGE = "too_large"  # over FLEET_MQTT_MAX_PAYLOAD_BYTES, dropped before parsing
     NOT_UTF8 = "not_utf8"
     NOT_JSON = "not_json"  # includes NaN, Infinity and numbers beyond a double
-    TOO_DEEP = "too_deep"  # nested deeper than vda5050.codec.MAX_NESTING
     NOT_OBJECT = "not_object"  # JSON, but null, a number, a string or a list
+    TOO_DEEP = "too_deep"  # nested deeper than vda5050.codec.MAX_NESTING
     SCHEMA = "schema"  # a field missing, of the wrong type or out of range
+    FUTURE = "future"  # timestamped more than FUTURE_TOLERANCE_SECONDS ahead of this host's clock
     NUL = "nul"  # a NUL character in a string
     HEADER_MISMATCH = "header_mismatch"  # the header's manufacturer or serialNumber are not the topic's
     REFUSED = "refused"  # PostgreSQL refused what the message holds (a factsheet)
@@ -407,6 +411,8 @@ class Bridge:
             raise Dropped(Drop(exc.problem.value), str(exc)) from None
         except ProtocolError as exc:
             raise Dropped(Drop.SCHEMA, str(exc)) from None
+        if order is not None and order[0] > (time.time() + FUTURE_TOLERANCE_SECONDS) * 1000:
+            raise Dropped(Drop.FUTURE, f"timestamp {message.timestamp} is ahead of this host's clock")
         if NUL_ESCAPE in payload and _holds_nul(orjson.loads(payload)):
             raise Dropped(Drop.NUL, "a string holds a NUL character")
         for field_name, value, expected in (

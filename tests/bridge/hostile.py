@@ -114,6 +114,7 @@ def _cases(kind: str, serial: str, stranger: str) -> list[Case]:
         invalid("header-id-beyond-uint32", with_number(str(2**32).encode()), Drop.SCHEMA),
         invalid("header-id-negative", with_number(b"-1"), Drop.SCHEMA),
         invalid("timestamp-not-a-time", changed(timestamp="yesterday"), Drop.SCHEMA),
+        invalid("from-the-future", changed(timestamp="2100-01-01T00:00:00.000Z"), Drop.FUTURE),
         invalid("nul-in-value", changed(note="stuck\x00here"), Drop.NUL),
         invalid("nul-in-key", changed(**{"no\x00te": 1}), Drop.NUL),
         invalid("deep", changed(note=nested), Drop.TOO_DEEP),
