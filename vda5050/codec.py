@@ -36,6 +36,7 @@ __all__ = [
     "ProtocolError",
     "encode",
     "header_for",
+    "nested_deeper",
     "parse",
     "parse_connection",
     "parse_factsheet",
@@ -147,7 +148,7 @@ def _load(payload: bytes | str) -> dict[str, Any]:
         )
     # Counting brackets is cheap; only a payload with more of them than MAX_NESTING can be too deep.
     brackets = (b"[", b"{") if isinstance(payload, bytes) else ("[", "{")
-    if sum(map(payload.count, brackets)) > MAX_NESTING and _deeper_than(data, MAX_NESTING):
+    if sum(map(payload.count, brackets)) > MAX_NESTING and nested_deeper(data):
         raise PayloadError(PAYLOAD_FIELD, PayloadProblem.TOO_DEEP, f"nested deeper than {MAX_NESTING} levels")
     return data
 
@@ -162,9 +163,10 @@ def _decode_problem(payload: bytes | str, exc: orjson.JSONDecodeError) -> Payloa
     return PayloadProblem.TOO_DEEP if "depth limit" in str(exc) else PayloadProblem.NOT_JSON
 
 
-def _deeper_than(data: dict[str, Any] | list[Any], limit: int) -> bool:
-    """Whether objects and arrays nest deeper than `limit` levels (without recursion, whatever the depth)."""
-    stack: list[tuple[dict[str, Any] | list[Any], int]] = [(data, 1)]
+def nested_deeper(data: Any, limit: int = MAX_NESTING) -> bool:
+    """Whether a JSON value's objects and arrays nest deeper than `limit` levels (found without recursion,
+    whatever the depth)."""
+    stack: list[tuple[Any, int]] = [(data, 1)] if isinstance(data, dict | list) else []
     while stack:
         value, depth = stack.pop()
         if depth > limit:

@@ -37,7 +37,7 @@ from missions.selectors import robots_with_missions
 from robots.choices import AgvClass
 from robots.models import Robot
 from robots.status import robot_status_write, robots_came_online
-from vda5050.codec import parse_connection, parse_factsheet, parse_state, parse_visualization
+from vda5050.codec import nested_deeper, parse_connection, parse_factsheet, parse_state, parse_visualization
 from vda5050.errors import PayloadError, ProtocolError
 from vda5050.models import Connection, ConnectionState, Factsheet, State, Visualization
 from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_version_of, parse_topic
@@ -668,11 +668,13 @@ def _holds_nul(data: Any) -> bool:
 
 
 def _user_info(state: State) -> Any:
-    """The reference's `info_messages`: the JSON of the robot's `user_info` information entry."""
+    """The reference's `info_messages`: the JSON of the robot's `user_info` information entry; its text if
+    that is no JSON PostgreSQL can store and the flush can serialize (NUL, nested too deep)."""
     for info in state.information or ():
         if info.info_type == "user_info" and info.info_description:
             try:
-                return orjson.loads(info.info_description)
+                value = orjson.loads(info.info_description)
             except orjson.JSONDecodeError:
                 return info.info_description
+            return info.info_description if nested_deeper(value) or _holds_nul(value) else value
     return None

@@ -167,6 +167,25 @@ def test_a_factsheet_the_database_refuses_is_counted_and_the_rest_of_the_batch_i
     assert livestate.latest_state(bystander.name).payload == good[1]
 
 
+@pytest.mark.parametrize(
+    "text",
+    ["[" * 1000 + "]" * 1000, '{"note": "stuck\\u0000here"}'],
+    ids=["nested-deeper-than-the-codec-allows", "nul-in-the-json-text"],
+)
+def test_a_user_info_whose_json_cannot_be_stored_is_kept_as_text(
+    bridge: Bridge, victim: Robot, bystander: Robot, text: str
+) -> None:
+    topic_name, payload = state_message(victim, header_id=2, at=10.0)
+    message = orjson.loads(payload)
+    message["information"] = [{"infoType": "user_info", "infoDescription": text, "infoLevel": "INFO"}]
+
+    bridge.handle([(topic_name, orjson.dumps(message)), state_message(bystander, battery=33.0)])
+    bridge.flush()
+
+    assert Robot.objects.get(name=victim.name).info_messages == text
+    assert Robot.objects.get(name=bystander.name).battery_level == 33.0
+
+
 def test_a_flood_of_dropped_messages_logs_one_line_per_topic_and_reason(
     bridge: Bridge, victim: Robot, caplog: pytest.LogCaptureFixture
 ) -> None:
