@@ -22,35 +22,45 @@ ONLINE_SET = f"{PREFIX}:online"
 LAST_SEEN = f"{PREFIX}:last-seen"
 
 # Stores a state unless an equal-or-newer one is already stored (reordered or duplicated messages are
-# harmless), and says whether what steps read (its digest) changed.
+# harmless), marks the robot heard and online, and says whether what steps read (its digest) changed.
 # Messages are ordered by the robot's (timestamp, headerId); a restarted robot resets headerId, not time.
-# KEYS: robot hash. ARGV: payload, timestamp (ms), headerId, the fields of the state's StateDigest, then
-# when the state arrived (epoch s, the bridge's clock).
-# Returns 0 stale, 1 same digest, 2 changed from no digest, else the replaced state's digest fields.
+# A state not stored does not count as heard: a replayed one must not keep a silent robot online.
+# KEYS: robot hash, LAST_SEEN, ONLINE_SET. ARGV: payload, timestamp (ms), headerId, the fields of the
+# state's StateDigest, when the state arrived (epoch s, the bridge's clock), the robot's name.
+# Returns {outcome, came online (1/0)[, the replaced state's digest fields]}: outcome -1 replayed (the stored
+# state's timestamp and headerId), 0 stale (older), 1 same digest, 2 changed.
 _STORE_STATE = """
 local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'full', 'events', 'order_id', 'order_update_id', 'busy')
 local ts, hid = tonumber(ARGV[2]), tonumber(ARGV[3])
 if old[1] then
   local old_ts, old_hid = tonumber(old[1]), tonumber(old[2])
-  if old_ts > ts or (old_ts == ts and old_hid >= hid) then return 0 end
+  if old_ts == ts and old_hid == hid then return {-1, 0} end
+  if old_ts > ts or (old_ts == ts and old_hid > hid) then return {0, 0} end
 end
 redis.call('HSET', KEYS[1], 'state', ARGV[1], 'ts', ARGV[2], 'hid', ARGV[3],
   'full', ARGV[4], 'events', ARGV[5], 'order_id', ARGV[6], 'order_update_id', ARGV[7], 'busy', ARGV[8],
   'at', ARGV[9])
-if old[3] == ARGV[4] then return 1 end
-if not old[3] then return 2 end
-return {old[3], old[4], old[5], old[6], old[7]}
+redis.call('ZADD', KEYS[2], ARGV[9], ARGV[10])
+local came_online = redis.call('SADD', KEYS[3], ARGV[10])
+if old[3] == ARGV[4] then return {1, came_online} end
+if not old[3] then return {2, came_online} end
+return {2, came_online, old[3], old[4], old[5], old[6], old[7]}
 """
 
-# Adds robots to the online set and returns those that were not in it, in one command whatever their
-# number (an SADD per robot costs the bridge more than the store script of its state).
-# KEYS: the online set. ARGV: robot names.
-_MARK_ONLINE = """
-local added = {}
-for _, name in ipairs(ARGV) do
-  if redis.call('SADD', KEYS[1], name) == 1 then table.insert(added, name) end
+# Orders a robot's messages on another topic as states are ordered, by (timestamp, headerId): records the
+# message's as the newest of its topic unless an equal or newer one is recorded.
+# KEYS: robot hash. ARGV: topic, timestamp (ms), headerId. Returns -1 replayed, 0 stale, 1 newest.
+_ORDER_MESSAGE = """
+local ts_field, hid_field = 'ts:' .. ARGV[1], 'hid:' .. ARGV[1]
+local old = redis.call('HMGET', KEYS[1], ts_field, hid_field)
+local ts, hid = tonumber(ARGV[2]), tonumber(ARGV[3])
+if old[1] then
+  local old_ts, old_hid = tonumber(old[1]), tonumber(old[2])
+  if old_ts == ts and old_hid == hid then return -1 end
+  if old_ts > ts or (old_ts == ts and old_hid > hid) then return 0 end
 end
-return added
+redis.call('HSET', KEYS[1], ts_field, ARGV[2], hid_field, ARGV[3])
+return 1
 """
 
 # Claims the right to publish messages to a robot: each (field, headerId) in turn, if the field (the last
@@ -78,23 +88,26 @@ return 0
 """
 
 # Scripts are called by their SHA, so a pipeline of them costs one round trip (`execute`).
-_SCRIPTS = (_STORE_STATE, _MARK_ONLINE, _CLAIM, _UNCLAIM)
+_SCRIPTS = (_STORE_STATE, _ORDER_MESSAGE, _CLAIM, _UNCLAIM)
 _STORE_STATE_SHA = hashlib.sha1(_STORE_STATE.encode()).hexdigest()
-_MARK_ONLINE_SHA = hashlib.sha1(_MARK_ONLINE.encode()).hexdigest()
+_ORDER_MESSAGE_SHA = hashlib.sha1(_ORDER_MESSAGE.encode()).hexdigest()
 _CLAIM_SHA = hashlib.sha1(_CLAIM.encode()).hexdigest()
 _UNCLAIM_SHA = hashlib.sha1(_UNCLAIM.encode()).hexdigest()
 
-STALE, UNCHANGED, CHANGED = 0, 1, 2
+REPLAYED, STALE, UNCHANGED, CHANGED = -1, 0, 1, 2
+NEWEST = 1  # an `order_message` result: the message is the newest of its topic
 
 Command = tuple[Any, ...]  # a Redis command: its name, then its arguments
 
 
 @dataclass(frozen=True)
 class Stored:
-    """What storing a state did: STALE, UNCHANGED or CHANGED, and for CHANGED the digest it replaced."""
+    """What storing a state did: REPLAYED or STALE (not stored), UNCHANGED or CHANGED, and for CHANGED the
+    digest it replaced (None: the first state); whether the robot was not online before."""
 
     outcome: int
     replaced: StateDigest | None = None
+    came_online: bool = False
 
 
 _client_lock = threading.Lock()
@@ -128,11 +141,20 @@ def store_state(
     digest: StateDigest,
     arrived_at: float,
 ) -> None:
-    """Queue the store on `pipe`, to run with `execute`; `stored` reads its result. `arrived_at`: epoch s,
-    this host's clock."""
+    """Queue the store on `pipe`, to run with `execute`; `stored` reads its result. A stored state marks the
+    robot heard at `arrived_at` (epoch s, this host's clock) and online."""
     args = [payload, timestamp_ms, header_id, digest.full, digest.events, digest.order_id]
-    args += [digest.order_update_id, int(digest.busy), repr(arrived_at)]
-    pipe.evalsha(_STORE_STATE_SHA, 1, robot_key(name), *args)
+    args += [digest.order_update_id, int(digest.busy)]
+    args += [repr(arrived_at), name]
+    pipe.evalsha(_STORE_STATE_SHA, 3, robot_key(name), LAST_SEEN, ONLINE_SET, *args)
+
+
+def order_message(
+    pipe: redis.client.Pipeline, *, name: str, topic: str, timestamp_ms: int, header_id: int
+) -> None:
+    """Queue on `pipe`: is this message of the robot on `topic` (not `state`: `store_state` orders states)
+    newer than every one before? Its result: REPLAYED, STALE or NEWEST (then recorded as the newest)."""
+    pipe.evalsha(_ORDER_MESSAGE_SHA, 1, robot_key(name), topic, timestamp_ms, header_id)
 
 
 def execute(pipe: redis.client.Pipeline) -> list[Any]:
@@ -206,13 +228,14 @@ def _send_and_read(connection: redis.connection.AbstractConnection, commands: li
     return replies
 
 
-def stored(result: int | list[bytes]) -> Stored:
+def stored(result: list[Any]) -> Stored:
     """What a `store_state` did, from its result in the pipeline's results."""
-    if isinstance(result, int):
-        return Stored(result)
-    full, events, order_id, order_update_id, busy = (value.decode() for value in result)
+    outcome, came_online, *digest = result
+    if not digest:
+        return Stored(outcome, None, bool(came_online))
+    full, events, order_id, order_update_id, busy = (value.decode() for value in digest)
     replaced = StateDigest(full, events, order_id, int(order_update_id), busy == "1")
-    return Stored(CHANGED, replaced)
+    return Stored(CHANGED, replaced, bool(came_online))
 
 
 class LatestState(NamedTuple):
@@ -291,18 +314,6 @@ def orders_held(names: list[str]) -> dict[str, HeldOrder | None]:
 def _arrival(at: bytes | None) -> datetime | None:
     """A state's stored arrival time (epoch s); states stored before it was recorded have none."""
     return None if at is None else datetime.fromtimestamp(float(at), UTC)
-
-
-def mark_seen(pipe: redis.client.Pipeline, names: list[str], at: float) -> None:
-    """Queue on `pipe`: the robots were heard `at` (epoch s) and are online; its result (`came_online`)
-    names those that were not online before."""
-    pipe.zadd(LAST_SEEN, dict.fromkeys(names, at))
-    pipe.evalsha(_MARK_ONLINE_SHA, 1, ONLINE_SET, *names)
-
-
-def came_online(result: list[bytes]) -> list[str]:
-    """The robots that were not online before, from `mark_seen`'s result (the last of its pipeline)."""
-    return [name.decode() for name in result]
 
 
 def mark_offline(name: str) -> bool:

@@ -235,6 +235,8 @@ NOTIFY_BACKOFF_SECONDS = env_float("FLEET_NOTIFY_BACKOFF_SECONDS", 1.0)
 BRIDGE_STATUS_FLUSH_SECONDS = env_float("FLEET_BRIDGE_FLUSH_SECONDS", 1.0)
 # MQTT shared-subscription group: several bridges with the same group split the robots' messages.
 BRIDGE_SHARE_GROUP = env_str("FLEET_BRIDGE_SHARE_GROUP", "")
+# A robot's message larger than this is dropped unparsed (a factsheet with its geometry fits many times over).
+MQTT_MAX_PAYLOAD_BYTES = env_int("FLEET_MQTT_MAX_PAYLOAD_BYTES", 1_048_576)
 TELEMETRY_SENDER = env_str("FLEET_TELEMETRY_SENDER", "")
 
 # --- Celery queues and beat -----------------------------------------------------------------------

@@ -9,7 +9,7 @@ from typing import Any, TypeVar
 import orjson
 from pydantic import BaseModel, ValidationError
 
-from vda5050.errors import ProtocolError
+from vda5050.errors import PayloadError, PayloadProblem, ProtocolError
 from vda5050.models import (
     Connection,
     ConnectionContent,
@@ -36,6 +36,7 @@ __all__ = [
     "ProtocolError",
     "encode",
     "header_for",
+    "nested_deeper",
     "parse",
     "parse_connection",
     "parse_factsheet",
@@ -51,6 +52,10 @@ LEGACY_INSTANT_ACTIONS_KEY = "instantActions"  # VDA 5050 1.1 name, still sent b
 PAYLOAD_FIELD = "<payload>"  # ProtocolError.field when the payload as a whole is wrong
 HEADER_KEYS = ("headerId", "timestamp", "version", "manufacturer", "serialNumber")
 TIMESTAMP_PATTERN = re.compile(r"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d+)?Z")
+# Levels of nested objects and arrays a payload may have. The document's own structures need 6; the rest is
+# for free-form values (action parameters, 3D envelope data). Deeper payloads are refused before anything
+# (validation, Python's json module on the way to PostgreSQL) could recurse through them.
+MAX_NESTING = 32
 
 MESSAGE_TYPES: dict[Topic, type[Message]] = {
     Topic.ORDER: Order,
@@ -136,10 +141,39 @@ def _load(payload: bytes | str) -> dict[str, Any]:
     try:
         data = orjson.loads(payload)
     except orjson.JSONDecodeError as exc:
-        raise ProtocolError(PAYLOAD_FIELD, f"not valid JSON ({exc})") from exc
+        raise PayloadError(PAYLOAD_FIELD, _decode_problem(payload, exc), f"not valid JSON ({exc})") from exc
     if not isinstance(data, dict):
-        raise ProtocolError(PAYLOAD_FIELD, f"expected a JSON object, got {type(data).__name__}")
+        raise PayloadError(
+            PAYLOAD_FIELD, PayloadProblem.NOT_OBJECT, f"expected a JSON object, got {type(data).__name__}"
+        )
+    # Counting brackets is cheap; only a payload with more of them than MAX_NESTING can be too deep.
+    brackets = (b"[", b"{") if isinstance(payload, bytes) else ("[", "{")
+    if sum(map(payload.count, brackets)) > MAX_NESTING and nested_deeper(data):
+        raise PayloadError(PAYLOAD_FIELD, PayloadProblem.TOO_DEEP, f"nested deeper than {MAX_NESTING} levels")
     return data
+
+
+def _decode_problem(payload: bytes | str, exc: orjson.JSONDecodeError) -> PayloadProblem:
+    if isinstance(payload, bytes):
+        try:
+            payload.decode()
+        except UnicodeDecodeError:
+            return PayloadProblem.NOT_UTF8
+    # orjson's own limit (1024 levels) is far above MAX_NESTING: past it the JSON may be valid, but too deep.
+    return PayloadProblem.TOO_DEEP if "depth limit" in str(exc) else PayloadProblem.NOT_JSON
+
+
+def nested_deeper(data: Any, limit: int = MAX_NESTING) -> bool:
+    """Whether a JSON value's objects and arrays nest deeper than `limit` levels (found without recursion,
+    whatever the depth)."""
+    stack: list[tuple[Any, int]] = [(data, 1)] if isinstance(data, dict | list) else []
+    while stack:
+        value, depth = stack.pop()
+        if depth > limit:
+            return True
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend((child, depth + 1) for child in children if isinstance(child, dict | list))
+    return False
 
 
 def _validate(model: type[ModelT], data: dict[str, Any]) -> ModelT:

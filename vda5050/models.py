@@ -19,7 +19,8 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 from pydantic.alias_generators import to_camel
 
-UInt = Annotated[int, Field(ge=0)]
+UINT32_MAX = 2**32 - 1  # the document's headerIds, sequenceIds and orderUpdateIds are uint32
+UInt = Annotated[int, Field(ge=0, le=UINT32_MAX)]
 
 
 class VdaModel(BaseModel):

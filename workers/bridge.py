@@ -8,6 +8,8 @@ so that the sweep does not send it again. The bridge runs no step itself: it que
 step workers (`workers.steps.request_steps`), one request per batch of states. Several bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
+A message it cannot take is dropped and counted by reason (`Drop`), one older than the robot's last on its
+topic is ignored and counted (`Ignored`); either way the rest of the batch goes on (README, Metrics).
 """
 
 import logging
@@ -16,8 +18,10 @@ import threading
 import time
 import zlib
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from enum import StrEnum
 from typing import Any
 
 import orjson
@@ -33,9 +37,9 @@ from missions.selectors import robots_with_missions
 from robots.choices import AgvClass
 from robots.models import Robot
 from robots.status import robot_status_write, robots_came_online
-from vda5050.codec import parse_connection, parse_factsheet, parse_state, parse_visualization
-from vda5050.errors import ProtocolError
-from vda5050.models import ConnectionState, State
+from vda5050.codec import nested_deeper, parse_connection, parse_factsheet, parse_state, parse_visualization
+from vda5050.errors import PayloadError, ProtocolError
+from vda5050.models import Connection, ConnectionState, Factsheet, State, Visualization
 from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_version_of, parse_topic
 from vda5050.topics import shared_subscription as shared_filter
 from workers import metrics
@@ -59,6 +63,12 @@ DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directo
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
 FORGET_STATUS_SECONDS = 60.0  # a robot silent this long is forgotten until it is heard again
 FAILURE_PAUSE_SECONDS = 1.0  # after an iteration failed (database or Redis unreachable)
+# A message timestamped further ahead of this host's clock is dropped: stored, it would make every message
+# the robot sends until then look older, and be ignored (a robot whose clock is this far off needs fixing).
+FUTURE_TOLERANCE_SECONDS = 300.0
+DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however many messages are dropped
+TOPIC_NAMES = frozenset(topic.value for topic in Topic)
+NUL_ESCAPE = b"\\u0000"  # how JSON writes a NUL character, which PostgreSQL stores in neither text nor jsonb
 STATUS_COLUMNS = (
     "battery_level",
     "pose_x",
@@ -71,6 +81,81 @@ STATUS_COLUMNS = (
     "info_messages",
 )
 JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages"})
+
+
+class Drop(StrEnum):
+    """Why a message was dropped unread: the `reason` of `messages_invalid` (README, Metrics). The values
+    of vda5050.errors.PayloadProblem are among them."""
+
+    TOPIC = "topic"  # not <interfaceName>/<vN>/<manufacturer>/<serialNumber>/<a topic the bridge reads>
+    UNKNOWN_ROBOT = "unknown_robot"  # no robot has these topic levels
+    TOO_LARGE = "too_large"  # over FLEET_MQTT_MAX_PAYLOAD_BYTES, dropped before parsing
+    NOT_UTF8 = "not_utf8"
+    NOT_JSON = "not_json"  # includes NaN, Infinity and numbers beyond a double
+    NOT_OBJECT = "not_object"  # JSON, but null, a number, a string or a list
+    TOO_DEEP = "too_deep"  # nested deeper than vda5050.codec.MAX_NESTING
+    SCHEMA = "schema"  # a field missing, of the wrong type or out of range
+    FUTURE = "future"  # timestamped more than FUTURE_TOLERANCE_SECONDS ahead of this host's clock
+    NUL = "nul"  # a NUL character in a string
+    HEADER_MISMATCH = "header_mismatch"  # the header's manufacturer or serialNumber are not the topic's
+    REFUSED = "refused"  # PostgreSQL refused what the message holds (a factsheet)
+
+
+class Ignored(StrEnum):
+    """Why a well-formed message was ignored: the `reason` of `messages_ignored`."""
+
+    REPLAYED = "replayed"  # the timestamp and headerId of the newest message on the topic, again
+    STALE = "stale"  # older (timestamp, then headerId) than the newest message on the topic
+
+
+class Dropped(Exception):
+    """A message the bridge does not take, and why."""
+
+    def __init__(self, reason: Drop, detail: str) -> None:
+        super().__init__(detail)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Received:
+    """A message the bridge read, of a known robot; `order` is its (timestamp ms, headerId), None for a
+    visualization without them."""
+
+    name: str
+    kind: Topic
+    message: State | Connection | Factsheet | Visualization
+    payload: bytes
+    order: tuple[int, int] | None
+    digest: StateDigest | None = None  # a state's
+
+
+PARSERS: dict[Topic, Callable[[bytes], State | Connection | Factsheet | Visualization]] = {
+    Topic.STATE: parse_state,
+    Topic.CONNECTION: parse_connection,
+    Topic.FACTSHEET: parse_factsheet,
+    Topic.VISUALIZATION: parse_visualization,
+}
+
+
+class DropLog:
+    """Logs dropped and ignored messages at most once per DROP_LOG_SECONDS per topic and reason, saying how
+    many it left out: a robot (or anyone) flooding the broker with junk must not flood the logs too."""
+
+    def __init__(self) -> None:
+        self._logged_at: dict[tuple[str, str], float] = {}
+        self._left_out: Counter[tuple[str, str]] = Counter()
+
+    def log(self, level: int, topic_label: str, reason: str, topic: str, detail: str) -> None:
+        key = (topic_label, reason)
+        now = time.monotonic()
+        if now - self._logged_at.get(key, float("-inf")) < DROP_LOG_SECONDS:
+            self._left_out[key] += 1
+            return
+        self._logged_at[key] = now
+        left_out = self._left_out.pop(key, 0)
+        more = f" ({left_out} more since the last such line)" if left_out else ""
+        verb = "dropped" if level >= logging.WARNING else "ignored"
+        logger.log(level, "%s message on %.200s (%s): %.300s%s", verb, topic, reason, detail, more)
 
 
 @dataclass
@@ -137,6 +222,7 @@ class Bridge:
         self._written = threading.Event()  # no flush is being written
         self._written.set()
         self._skipped: queue.SimpleQueue[str] = queue.SimpleQueue()  # robots whose status a write skipped
+        self._drop_log = DropLog()
 
     # --- MQTT thread ---
 
@@ -215,76 +301,152 @@ class Bridge:
                 return
 
     def handle(self, batch: list[tuple[str, bytes]], received_at: float | None = None) -> None:
-        """Parse a batch, store states in one Redis pipeline, then act on what changed.
+        """Read a batch, store states (and order the other topics' messages) in one Redis pipeline, then act
+        on what is new. A message that cannot be read is dropped, one older than what is known is ignored;
+        either is counted (`messages_invalid`, `messages_ignored`) and the rest of the batch goes on.
 
         `received_at` (epoch s) is when the batch's first message arrived: step latency counts from there,
         and it stands for every state's arrival (the earliest, so a resend never comes early).
         """
         arrived_at = received_at or time.time()
-        # One round trip: the store_state calls first (their results lead), then counters and marks.
+        # One round trip: the store_state and order_message calls first (their results lead), then counters.
         pipe = livestate.client().pipeline(transaction=False)
-        stored: list[tuple[str, State, StateDigest]] = []  # in the order of the store_state calls on `pipe`
-        counts: Counter[tuple[str, str]] = Counter()  # (counter, topic) -> messages: one HINCRBY each
-        seen: dict[str, float] = {}
-        disconnected: set[str] = set()  # a later state in the same batch reconnects
+        queued: list[Received] = []  # in the order of their store_state/order_message calls on `pipe`
+        arrived: Counter[str] = Counter()  # topic -> messages of known robots
+        invalid: Counter[tuple[str, str]] = Counter()  # (topic, reason) -> messages dropped
         for topic, payload in batch:
             if not payload:
                 continue  # clearing a retained message (connection, factsheet) is not a message
             try:
-                identity, kind = parse_topic(topic)
-                name = self.directory.name(identity)
-                if name is None:
-                    counts[metrics.MESSAGES_INVALID, "unknown_robot"] += 1
-                    continue
-                counts[metrics.MESSAGES_IN, kind.value] += 1
-                if kind == Topic.STATE:
-                    state = parse_state(payload)
-                    digest = state_digest(state)
-                    livestate.store_state(
-                        pipe,
-                        name=name,
-                        payload=payload,
-                        timestamp_ms=_timestamp_ms(state.timestamp),
-                        header_id=state.header_id,
-                        digest=digest,
-                        arrived_at=arrived_at,
-                    )
-                    stored.append((name, state, digest))
-                    seen[name] = time.time()
-                    disconnected.discard(name)
-                elif kind == Topic.VISUALIZATION:
-                    position = parse_visualization(payload).agv_position
-                    if position is not None:
-                        self._pending(name).update(
-                            pose_x=position.x, pose_y=position.y, pose_theta=position.theta
-                        )
-                elif kind == Topic.CONNECTION:
-                    if parse_connection(payload).connection_state != ConnectionState.ONLINE:
-                        disconnected.add(name)
-                elif kind == Topic.FACTSHEET:
-                    self._store_factsheet(name, payload)
-            except (ProtocolError, DatabaseError) as exc:  # DatabaseError: a factsheet PostgreSQL refuses
-                counts[metrics.MESSAGES_INVALID, topic.rsplit("/", 1)[-1][:32]] += 1
-                logger.warning("dropped malformed message on %s: %s", topic, exc)
-        for (counter, topic_label), by in counts.items():
-            metrics.count(counter, by=by, pipe=pipe, topic=topic_label)
-        if seen:
-            livestate.mark_seen(pipe, list(seen), max(seen.values()))
-        results = livestate.execute(pipe)
-        stored_results = results[: len(stored)]
-        changed = set()
-        for (name, state, digest), result in zip(stored, stored_results, strict=True):
-            store = livestate.stored(result)
-            if store.outcome != livestate.STALE:  # an older state must not overwrite a newer status
-                self._remember_status(name, state)
-            if store.outcome != livestate.CHANGED:
+                received = self._read(topic, payload, arrived)
+            except Dropped as dropped:
+                label = _topic_label(topic)
+                invalid[label, dropped.reason] += 1
+                self._drop_log.log(logging.WARNING, label, dropped.reason, topic, str(dropped))
                 continue
-            if store.replaced is not None and takes_order_only(store.replaced, digest):
-                self.accepted_orders[name] = (digest.order_id, digest.order_update_id)
-            else:
-                changed.add(name)
-        came_online = livestate.came_online(results[-1]) if seen else []
+            if received.kind == Topic.STATE:
+                assert received.order is not None and received.digest is not None
+                livestate.store_state(
+                    pipe,
+                    name=received.name,
+                    payload=payload,
+                    timestamp_ms=received.order[0],
+                    header_id=received.order[1],
+                    digest=received.digest,
+                    arrived_at=arrived_at,
+                )
+            elif received.order is not None:
+                timestamp_ms, header_id = received.order
+                livestate.order_message(
+                    pipe,
+                    name=received.name,
+                    topic=received.kind,
+                    timestamp_ms=timestamp_ms,
+                    header_id=header_id,
+                )
+            else:  # an ONLINE connection changes nothing; a visualization without header is not ordered
+                if received.kind == Topic.VISUALIZATION:
+                    self._visualization(received)
+                continue
+            queued.append(received)
+        for topic_label, by in arrived.items():
+            metrics.count(metrics.MESSAGES_IN, by=by, pipe=pipe, topic=topic_label)
+        for (topic_label, reason), by in invalid.items():
+            metrics.count(metrics.MESSAGES_INVALID, by=by, pipe=pipe, topic=topic_label, reason=reason)
+        results = livestate.execute(pipe)
+        changed: set[str] = set()
+        came_online: list[str] = []
+        disconnected: set[str] = set()  # a later state in the same batch reconnects
+        late: Counter[tuple[str, str, str]] = Counter()  # (counter, topic, reason) -> messages
+        for received, result in zip(queued, results[: len(queued)], strict=True):
+            outcome = livestate.stored(result) if received.kind == Topic.STATE else None
+            code = outcome.outcome if outcome is not None else result
+            if code in (livestate.REPLAYED, livestate.STALE):
+                reason = Ignored.REPLAYED if code == livestate.REPLAYED else Ignored.STALE
+                late[metrics.MESSAGES_IGNORED, received.kind.value, reason] += 1
+                where = f"robot {received.name}'s {received.kind}"
+                self._drop_log.log(logging.INFO, received.kind, reason, where, "not newer than the last")
+            elif received.kind == Topic.STATE:
+                assert outcome is not None
+                self._stored_state(received, outcome, changed)
+                disconnected.discard(received.name)
+                if outcome.came_online:
+                    came_online.append(received.name)
+            elif received.kind == Topic.CONNECTION:
+                disconnected.add(received.name)  # only disconnections are ordered (`_read`)
+            elif received.kind == Topic.VISUALIZATION:
+                self._visualization(received)
+            elif received.kind == Topic.FACTSHEET:
+                try:
+                    self._store_factsheet(received)
+                except DatabaseError as exc:
+                    late[metrics.MESSAGES_INVALID, received.kind.value, Drop.REFUSED] += 1
+                    where = f"robot {received.name}'s {received.kind}"
+                    self._drop_log.log(logging.WARNING, received.kind, Drop.REFUSED, where, str(exc))
+        if late:
+            counters = livestate.client().pipeline(transaction=False)
+            for (counter, topic_label, reason), by in late.items():
+                metrics.count(counter, by=by, pipe=counters, topic=topic_label, reason=reason)
+            livestate.execute(counters)
         self._act(changed, came_online, disconnected, received_at=arrived_at)
+
+    def _read(self, topic: str, payload: bytes, arrived: Counter[str]) -> Received:
+        """The message on `topic`, of a known robot, whole and about that robot; else Dropped saying why."""
+        try:
+            identity, kind = parse_topic(topic)
+        except ProtocolError as exc:
+            raise Dropped(Drop.TOPIC, str(exc)) from None
+        if kind not in PARSERS:
+            raise Dropped(Drop.TOPIC, f"the bridge does not read {kind.value!r} messages")
+        name = self.directory.name(identity)
+        if name is None:
+            raise Dropped(Drop.UNKNOWN_ROBOT, "no robot has these topic levels")
+        arrived[kind.value] += 1
+        if len(payload) > settings.MQTT_MAX_PAYLOAD_BYTES:
+            raise Dropped(Drop.TOO_LARGE, f"{len(payload)} bytes, over {settings.MQTT_MAX_PAYLOAD_BYTES}")
+        try:
+            message = PARSERS[kind](payload)
+            order = _order(message)
+        except PayloadError as exc:
+            raise Dropped(Drop(exc.problem.value), str(exc)) from None
+        except ProtocolError as exc:
+            raise Dropped(Drop.SCHEMA, str(exc)) from None
+        if order is not None and order[0] > (time.time() + FUTURE_TOLERANCE_SECONDS) * 1000:
+            raise Dropped(Drop.FUTURE, f"timestamp {message.timestamp} is ahead of this host's clock")
+        if NUL_ESCAPE in payload and _holds_nul(orjson.loads(payload)):
+            raise Dropped(Drop.NUL, "a string holds a NUL character")
+        for field_name, value, expected in (
+            ("manufacturer", message.manufacturer, identity.manufacturer),
+            ("serialNumber", message.serial_number, identity.serial_number),
+        ):
+            if value is not None and value != expected:
+                raise Dropped(Drop.HEADER_MISMATCH, f"header {field_name} {value!r} on {expected!r}'s topic")
+        if isinstance(message, Connection) and message.connection_state == ConnectionState.ONLINE:
+            return Received(name, kind, message, payload, None)  # changes nothing: see `_order`
+        digest = state_digest(message) if isinstance(message, State) else None
+        return Received(name, kind, message, payload, order, digest)
+
+    def _stored_state(self, received: Received, store: livestate.Stored, changed: set[str]) -> None:
+        state = received.message
+        assert isinstance(state, State)
+        self._remember_status(received.name, state)
+        if store.outcome != livestate.CHANGED:
+            return
+        digest = received.digest
+        assert digest is not None
+        if store.replaced is not None and takes_order_only(store.replaced, digest):
+            self.accepted_orders[received.name] = (digest.order_id, digest.order_update_id)
+        else:
+            changed.add(received.name)
+
+    def _visualization(self, received: Received) -> None:
+        visualization = received.message
+        assert isinstance(visualization, Visualization)
+        position = visualization.agv_position
+        if position is not None:
+            self._pending(received.name).update(
+                pose_x=position.x, pose_y=position.y, pose_theta=position.theta
+            )
 
     def _act(
         self, changed: set[str], came_online: list[str], disconnected: set[str], *, received_at: float
@@ -349,11 +511,12 @@ class Bridge:
     def _pending(self, name: str) -> dict[str, Any]:
         return self._status(name).pending
 
-    def _store_factsheet(self, name: str, payload: bytes) -> None:
-        factsheet = parse_factsheet(payload)
+    def _store_factsheet(self, received: Received) -> None:
+        factsheet = received.message
+        assert isinstance(factsheet, Factsheet)
         agv_class = str(factsheet.type_specification.agv_class)
-        Robot.objects.filter(name=name).update(
-            factsheet=orjson.loads(payload),
+        Robot.objects.filter(name=received.name).update(
+            factsheet=orjson.loads(received.payload),
             agv_class=agv_class if agv_class in AgvClass.values else AgvClass.CARRIER,
             speed_max=factsheet.physical_parameters.speed_max,
         )
@@ -460,6 +623,24 @@ class Bridge:
                 status.written, status.written_at, status.last_state_at_written = {}, 0.0, None
 
 
+def _topic_label(topic: str) -> str:
+    """The `topic` label of a message's counters: its last level if that names a VDA 5050 topic, else
+    `other` (labels are few whatever arrives)."""
+    last = topic.rsplit("/", 1)[-1]
+    return last if last in TOPIC_NAMES else "other"
+
+
+def _order(message: State | Connection | Factsheet | Visualization) -> tuple[int, int] | None:
+    """The message's (timestamp ms, headerId), by which the robot's messages on its topic are ordered.
+
+    Disconnections are ordered among themselves only: the broker sends a robot's last will (CONNECTIONBROKEN)
+    with the header the robot gave it when it connected, older than the ONLINE it sent next. So a replayed
+    or older disconnection is ignored, and a robot's real last will still marks it offline."""
+    if message.timestamp is None or message.header_id is None:  # a visualization may lack its header
+        return None
+    return _timestamp_ms(message.timestamp), message.header_id
+
+
 def _timestamp_ms(timestamp: str) -> int:
     try:
         moment = datetime.fromisoformat(timestamp.replace("Z", "+00:00"))
@@ -470,12 +651,30 @@ def _timestamp_ms(timestamp: str) -> int:
     return int(moment.timestamp() * 1000)
 
 
+def _holds_nul(data: Any) -> bool:
+    """Whether any key or string in the JSON value holds a NUL character (without recursion)."""
+    stack = [data]
+    while stack:
+        value = stack.pop()
+        if isinstance(value, str):
+            if "\x00" in value:
+                return True
+        elif isinstance(value, dict):
+            stack.extend(value.keys())
+            stack.extend(value.values())
+        elif isinstance(value, list):
+            stack.extend(value)
+    return False
+
+
 def _user_info(state: State) -> Any:
-    """The reference's `info_messages`: the JSON of the robot's `user_info` information entry."""
+    """The reference's `info_messages`: the JSON of the robot's `user_info` information entry; its text if
+    that is no JSON PostgreSQL can store and the flush can serialize (NUL, nested too deep)."""
     for info in state.information or ():
         if info.info_type == "user_info" and info.info_description:
             try:
-                return orjson.loads(info.info_description)
+                value = orjson.loads(info.info_description)
             except orjson.JSONDecodeError:
                 return info.info_description
+            return info.info_description if nested_deeper(value) or _holds_nul(value) else value
     return None

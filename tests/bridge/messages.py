@@ -47,8 +47,11 @@ def state_message(
     return topic(robot, "state"), wire(robot, robot_state(**fields), header_id=header_id, at=at)
 
 
-def connection_message(robot: Robot | str, connection_state: ConnectionState) -> tuple[str, bytes]:
-    return topic(robot, "connection"), wire(robot, ConnectionContent(connection_state=connection_state))
+def connection_message(
+    robot: Robot | str, connection_state: ConnectionState, *, header_id: int = 1, at: float = 0.0
+) -> tuple[str, bytes]:
+    content = ConnectionContent(connection_state=connection_state)
+    return topic(robot, "connection"), wire(robot, content, header_id=header_id, at=at)
 
 
 def visualization_message(
