@@ -479,7 +479,10 @@ SCHEMA_ERROR_EXAMPLE = OpenApiExample(
 
 
 class HealthView(APIView):
-    """Liveness of the API process."""
+    """Liveness of the API process: public, for load balancers and probes."""
+
+    authentication_classes = []
+    permission_classes = []
 
     @extend_schema(
         operation_id="health",

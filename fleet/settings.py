@@ -7,6 +7,8 @@ default that works against the services of a local development machine.
 import os
 from pathlib import Path
 
+from django.core.exceptions import ImproperlyConfigured
+
 BASE_DIR = Path(__file__).resolve().parent.parent
 
 
@@ -29,8 +31,32 @@ def env_bool(name: str, default: bool) -> bool:
     return value.strip().lower() in {"1", "true", "yes", "on"}
 
 
-SECRET_KEY = env_str("FLEET_SECRET_KEY", "insecure-development-key-change-me-in-production")
 DEBUG = env_bool("FLEET_DEBUG", False)
+# Files `make run` keeps for a development machine (git-ignored): its secret key and its API token.
+LOCAL_DIR = BASE_DIR / ".fleet"
+LOCAL_SECRET_KEY_FILE = LOCAL_DIR / "secret-key"
+DEV_TOKEN_FILE = LOCAL_DIR / "dev-token"
+DEVELOPMENT_SECRET_KEY = "insecure-development-key-change-me-in-production"
+
+
+def secret_key() -> str:
+    """FLEET_SECRET_KEY, else the local key `make run` generated, else (in debug mode only) the built-in
+    development key, which anyone can read here and so could forge sessions and CSRF tokens with."""
+    key = os.environ.get("FLEET_SECRET_KEY") or (
+        LOCAL_SECRET_KEY_FILE.read_text().strip() if LOCAL_SECRET_KEY_FILE.exists() else ""
+    )
+    if key:
+        return key
+    if DEBUG:
+        return DEVELOPMENT_SECRET_KEY
+    raise ImproperlyConfigured(
+        "No secret key: set FLEET_SECRET_KEY (e.g. to the output of "
+        "python -c 'import secrets; print(secrets.token_urlsafe(50))'). The built-in development key is "
+        f"accepted only with FLEET_DEBUG=true; `make run` generates a local key in {LOCAL_SECRET_KEY_FILE}."
+    )
+
+
+SECRET_KEY = secret_key()
 ALLOWED_HOSTS = env_str("FLEET_ALLOWED_HOSTS", "*").split(",")
 
 INSTALLED_APPS = [
@@ -44,6 +70,8 @@ INSTALLED_APPS = [
     "django_filters",
     "drf_spectacular",
     "drf_spectacular_sidecar",
+    "rest_framework_api_key",
+    "access",
     "robots",
     "missions",
     "workers",
@@ -112,14 +140,20 @@ WHITENOISE_USE_FINDERS = True
 
 # --- REST API -------------------------------------------------------------------------------------
 API_PORT = env_int("FLEET_API_PORT", 5000)
+# Off: the reference's open API, for trusted networks only (the API process warns at start).
+API_AUTH = env_bool("FLEET_API_AUTH", True)
 
 REST_FRAMEWORK = {
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
     "DEFAULT_FILTER_BACKENDS": ["django_filters.rest_framework.DjangoFilterBackend"],
     "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"],
     "DEFAULT_PARSER_CLASSES": ["fleet.parsers.JSONParser"],
-    "DEFAULT_AUTHENTICATION_CLASSES": [],
-    "DEFAULT_PERMISSION_CLASSES": [],
+    # Both read FLEET_API_AUTH per request; the first one's WWW-Authenticate makes refusals 401s.
+    "DEFAULT_AUTHENTICATION_CLASSES": [
+        "access.authentication.BearerTokenAuthentication",
+        "access.authentication.StaffSessionAuthentication",
+    ],
+    "DEFAULT_PERMISSION_CLASSES": ["access.permissions.ApiAccess"],
     "UNAUTHENTICATED_USER": None,
     "EXCEPTION_HANDLER": "fleet.api.exception_handler",
 }
@@ -132,6 +166,13 @@ SPECTACULAR_SETTINGS = {
     ),
     "VERSION": "1.0.0",
     "SERVE_INCLUDE_SCHEMA": False,
+    # The schema and Swagger UI are public, whatever credentials a request carries.
+    "SERVE_AUTHENTICATION": [],
+    "SERVE_PERMISSIONS": ["rest_framework.permissions.AllowAny"],
+    "POSTPROCESSING_HOOKS": [
+        "drf_spectacular.hooks.postprocess_schema_enums",
+        "access.schema.add_auth_responses",
+    ],
     "SWAGGER_UI_DIST": "SIDECAR",
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
     "REDOC_DIST": "SIDECAR",

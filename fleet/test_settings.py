@@ -4,6 +4,11 @@ Tests start real bridge, worker and beat processes; a separate Redis database ke
 and live robot state apart from a development instance (`make run`) on the same machine.
 """
 
+import os
+
+# Before fleet.settings refuses to start without one; the server processes tests start inherit it.
+os.environ.setdefault("FLEET_SECRET_KEY", "test-suite-secret-key-not-for-production")
+
 from fleet.settings import *  # noqa: F403
 from fleet.settings import env_str
 

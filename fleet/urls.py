@@ -4,7 +4,7 @@ from drf_spectacular.views import SpectacularJSONAPIView, SpectacularSwaggerView
 
 from fleet.api import HealthView
 from missions.api.views import BehaviorsView
-from workers.metrics import metrics_view
+from workers.metrics import MetricsView
 
 urlpatterns = [
     path("admin/", admin.site.urls),
@@ -12,7 +12,7 @@ urlpatterns = [
     path("docs", SpectacularSwaggerView.as_view(url_name="openapi"), name="docs"),
     path("health", HealthView.as_view(), name="health"),
     path("behaviors", BehaviorsView.as_view(), name="behaviors"),
-    path("metrics", metrics_view, name="metrics"),
+    path("metrics", MetricsView.as_view(), name="metrics"),
     path("", include("robots.api.urls")),
     path("", include("missions.api.urls")),
 ]

@@ -14,6 +14,7 @@ from django.urls import reverse
 from django.utils.html import format_html
 from django.utils.safestring import SafeString
 
+from access.authentication import request_actor
 from missions.engine import Node, TreeError, apply_route_updates, parse_tree
 from missions.models import Mission
 from missions.services import mission_cancel, mission_delete
@@ -204,8 +205,13 @@ class MissionAdmin(admin.ModelAdmin):
 
     @admin.action(description="Cancel selected missions", permissions=["cancel"])
     def cancel_missions(self, request: HttpRequest, queryset: QuerySet[Mission]) -> None:
+        actor = request_actor(request)
         call_service_for_each(
-            self, request, queryset, lambda mission: mission_cancel(mission=mission), "Cancel requested"
+            self,
+            request,
+            queryset,
+            lambda mission: mission_cancel(actor=actor, mission=mission),
+            "Cancel requested",
         )
 
     def delete_model(self, request: HttpRequest, obj: Mission) -> None:
@@ -216,6 +222,6 @@ class MissionAdmin(admin.ModelAdmin):
             self,
             request,
             queryset,
-            lambda mission: mission_delete(mission=mission),
+            lambda mission: mission_delete(actor=request_actor(request), mission=mission),
             "their robot has confirmed the cancel",
         )

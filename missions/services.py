@@ -13,6 +13,9 @@ from typing import Any
 from django.db import IntegrityError, connection, transaction
 from django.utils import timezone
 
+from access.choices import WriteAction
+from access.models import WriteRecord
+from access.services import write_record
 from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
 from fleet.wake import wake_robot
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
@@ -28,12 +31,13 @@ UPDATABLE_STATES = frozenset({MissionState.PENDING, MissionState.RUNNING})
 CANCEL_FIELDS = ("state", "end_timestamp", "failure_category", "needs_canceled", "node_status")
 
 
-def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Mission:
+def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Mission:
     """A new PENDING mission, queued behind the robot's other missions (the robot need not exist yet).
 
     `spec` is in the API's shape (robot, mission_tree, timeout, deadline, needs_canceled, update_nodes).
     The tree is stored normalized: every node named (unnamed ones by their index) with its parent and its
-    one kind. A mission created with needs_canceled is created CANCELED.
+    one kind. A mission created with needs_canceled is created CANCELED. `actor` (who asks, as in every
+    service here) is recorded with the write.
     """
     mission_name = object_name_for_create(name=name, prefix=prefix, what="Mission name")
     robot = spec["robot"]
@@ -56,7 +60,7 @@ def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, A
     if spec.get("needs_canceled"):
         _cancel_queued(mission)
     try:
-        queued_behind_others = _mission_insert(mission)
+        queued_behind_others = _mission_insert(mission, actor=actor)
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
     if not queued_behind_others:
@@ -64,8 +68,9 @@ def mission_create(*, name: str | None, prefix: str | None, spec: Mapping[str, A
     return mission
 
 
-def _mission_insert(mission: Mission) -> bool:
-    """Insert the new mission (plain SQL, see MISSION_INSERT_SQL); True if it is queued behind others.
+def _mission_insert(mission: Mission, *, actor: str) -> bool:
+    """Insert the new mission and its WriteRecord (plain SQL, see MISSION_INSERT_SQL); True if it is queued
+    behind others.
 
     Queued behind others: the robot has an earlier unfinished mission, so the step that ends that one starts
     this one (ROBOT_QUEUE_LOCK_SQL keeps that true while a step ends that mission). One statement in
@@ -80,7 +85,7 @@ def _mission_insert(mission: Mission) -> bool:
         nullcontext() if transaction.get_autocommit() else transaction.atomic(),
         connection.cursor() as cursor,
     ):
-        cursor.execute(MISSION_INSERT_SQL, values)
+        cursor.execute(MISSION_INSERT_SQL, [*values, actor, WriteAction.MISSION_CREATE.value])
         mission.queue_position, queued_behind_others = cursor.fetchone()
     # What Model.save() records: the instance is now a stored row.
     mission._state.adding = False
@@ -88,7 +93,7 @@ def _mission_insert(mission: Mission) -> bool:
     return queued_behind_others
 
 
-def mission_cancel(*, mission: Mission) -> Mission:
+def mission_cancel(*, actor: str, mission: Mission) -> Mission:
     """Cancel a mission: a queued one is CANCELED at once; a RUNNING one gets needs_canceled, and the engine
     sends the robot cancelOrder and ends it when the robot confirms. A finished mission is a UsageError."""
     with transaction.atomic():
@@ -102,16 +107,18 @@ def mission_cancel(*, mission: Mission) -> Mission:
         else:
             locked.needs_canceled = True
         locked.save(update_fields=[*CANCEL_FIELDS, "updated_at"])
+        write_record(actor=actor, action=WriteAction.MISSION_CANCEL, object_name=locked.name)
         wake_robot(locked.robot)
     return locked
 
 
-def mission_delete(*, mission: Mission) -> Mission | None:
+def mission_delete(*, actor: str, mission: Mission) -> Mission | None:
     """Mark the mission PENDING_DELETE and remove it, at once unless it is RUNNING: then it is canceled
     (needs_canceled) and the engine removes it when it ends. Returns the mission while it remains, else None.
     """
     with transaction.atomic():
         locked = lock_row(mission)
+        write_record(actor=actor, action=WriteAction.MISSION_DELETE, object_name=locked.name)
         wake_robot(locked.robot)
         if locked.state == MissionState.RUNNING:
             locked.lifecycle = Lifecycle.PENDING_DELETE
@@ -122,7 +129,9 @@ def mission_delete(*, mission: Mission) -> Mission | None:
     return None
 
 
-def mission_update_routes(*, mission: Mission, update_nodes: Mapping[str, Mapping[str, Any]]) -> Mission:
+def mission_update_routes(
+    *, actor: str, mission: Mission, update_nodes: Mapping[str, Mapping[str, Any]]
+) -> Mission:
     """Give route nodes new waypoints (merged into update_nodes); the engine re-sends a running route.
 
     Only while the mission is PENDING or RUNNING, only route nodes, and only nodes that are not done.
@@ -134,6 +143,7 @@ def mission_update_routes(*, mission: Mission, update_nodes: Mapping[str, Mappin
         _route_updates_check(locked, _tree_parse(locked.mission_tree), update_nodes)
         locked.update_nodes = {**(locked.update_nodes or {}), **_plain(update_nodes)}
         locked.save(update_fields=["update_nodes", "updated_at"])
+        write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
         wake_robot(locked.robot)
     return locked
 
@@ -205,12 +215,15 @@ def mission_notify_finished(*, mission: str, node: str, success: bool, error_msg
 MISSION_INSERT_FIELDS = tuple(name for name, field in MISSION_FIELDS.items() if not field.has_db_default())
 # mission_queued_behind() (migration 0005) takes the robot's queue lock (missions.rows.ROBOT_QUEUE_LOCK_SQL)
 # shared, then looks at the queue with a snapshot of its own: the statement's is taken before anything in
-# it runs, the lock included.
+# it runs, the lock included. The same statement records the write (WriteRecord): both are stored or neither.
 MISSION_INSERT_SQL = f"""
     WITH new AS (
         INSERT INTO {Mission._meta.db_table} ({", ".join(mission_columns(MISSION_INSERT_FIELDS))})
         VALUES ({", ".join(["%s"] * len(MISSION_INSERT_FIELDS))})
-        RETURNING robot, queue_position
+        RETURNING name, robot, queue_position
+    ), record AS (
+        INSERT INTO {WriteRecord._meta.db_table} (at, actor, action, object_name)
+        SELECT now(), %s, %s, name FROM new
     )
     SELECT queue_position, mission_queued_behind(robot, queue_position) FROM new
 """

@@ -11,6 +11,7 @@ from django.db.models import Model, QuerySet
 from django.forms.models import model_to_dict
 from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
 
+from access.authentication import request_actor
 from fleet.api import UsageError, object_name_validator
 from robots.api.serializers import RobotSpecSerializer, RobotVda5050Serializer
 from robots.choices import TeleopAction
@@ -205,9 +206,9 @@ class RobotAdmin(admin.ModelAdmin):
 
     def save_model(self, request: HttpRequest, obj: Robot, form: RobotAdminForm, change: bool) -> None:
         if not change:
-            robot_create(name=obj.name, prefix=None, spec=form.spec)
+            robot_create(actor=request_actor(request), name=obj.name, prefix=None, spec=form.spec)
         elif form.changed_data:
-            robot_update_spec(robot=obj, spec=form.spec)
+            robot_update_spec(actor=request_actor(request), robot=obj, spec=form.spec)
 
     def delete_model(self, request: HttpRequest, obj: Robot) -> None:
         self.delete_queryset(request, [obj])
@@ -217,7 +218,7 @@ class RobotAdmin(admin.ModelAdmin):
             self,
             request,
             queryset,
-            lambda robot: robot_delete(robot=robot),
+            lambda robot: robot_delete(actor=request_actor(request), robot=robot),
             "the engine has failed their running mission",
         )
 
@@ -226,7 +227,7 @@ class RobotAdmin(admin.ModelAdmin):
             self,
             request,
             queryset,
-            lambda robot: robot_teleop(robot=robot, action=action),
+            lambda robot: robot_teleop(actor=request_actor(request), robot=robot, action=action),
             f"{action} teleop requested",
         )
 

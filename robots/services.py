@@ -8,6 +8,8 @@ from typing import Any
 from django.conf import settings
 from django.db import IntegrityError, connection, transaction
 
+from access.choices import WriteAction
+from access.services import write_record
 from fleet import livestate
 from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
 from fleet.wake import wake_robot
@@ -25,8 +27,9 @@ STOP_TELEOP = ActionType.STOP_TELEOP.value
 SPEC_KEYS = frozenset({"labels", "battery", "heartbeat_timeout", "switch_teleop", "vda5050"})
 
 
-def robot_create(*, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Robot:
-    """A new robot from a spec in the API's shape; omitted spec fields take their defaults.
+def robot_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Robot:
+    """A new robot from a spec in the API's shape; omitted spec fields take their defaults. `actor` (who
+    asks, as in every service here) is recorded with the write.
 
     Without a name the robot is named `<prefix>-<random id>` or a random id. A duplicate name raises the
     reference's ObjectError; a VDA 5050 identity another robot already uses raises a UsageError.
@@ -37,6 +40,7 @@ def robot_create(*, name: str | None, prefix: str | None, spec: Mapping[str, Any
     try:
         with transaction.atomic():
             robot.save(force_insert=True)
+            write_record(actor=actor, action=WriteAction.ROBOT_CREATE, object_name=robot.name)
             if settings.DISPATCH_REQUEST_FACTSHEET:
                 _queue_instant_action(robot, FACTSHEET_REQUEST)
             wake_robot(robot.name)
@@ -47,7 +51,7 @@ def robot_create(*, name: str | None, prefix: str | None, spec: Mapping[str, Any
     return robot
 
 
-def robot_update_spec(*, robot: Robot, spec: Mapping[str, Any]) -> Robot:
+def robot_update_spec(*, actor: str, robot: Robot, spec: Mapping[str, Any]) -> Robot:
     """Replace the robot's whole spec (PUT): fields the spec omits go back to their defaults."""
     fields = _robot_spec_fields(spec, robot_name=robot.name)
     try:
@@ -56,13 +60,14 @@ def robot_update_spec(*, robot: Robot, spec: Mapping[str, Any]) -> Robot:
             for field, value in fields.items():
                 setattr(locked, field, value)
             locked.save(update_fields=[*fields, "updated_at"])
+            write_record(actor=actor, action=WriteAction.ROBOT_UPDATE, object_name=locked.name)
             wake_robot(locked.name)
     except IntegrityError as error:
         raise _identity_taken(fields) from error
     return locked
 
 
-def robot_delete(*, robot: Robot) -> Robot | None:
+def robot_delete(*, actor: str, robot: Robot) -> Robot | None:
     """Mark the robot PENDING_DELETE and remove it, at once unless a mission of it is RUNNING: then the
     engine fails that mission and removes the robot. Returns the robot while it remains, else None.
 
@@ -70,6 +75,7 @@ def robot_delete(*, robot: Robot) -> Robot | None:
     """
     with transaction.atomic():
         locked = lock_row(robot)
+        write_record(actor=actor, action=WriteAction.ROBOT_DELETE, object_name=locked.name)
         wake_robot(locked.name)
         if Mission.objects.filter(robot=locked.name, state=MissionState.RUNNING).exists():
             locked.lifecycle = Lifecycle.PENDING_DELETE
@@ -96,7 +102,7 @@ def robot_rows_delete(name: str) -> None:
         cursor.execute(ROBOT_DELETE_SQL, {"name": name})
 
 
-def robot_teleop(*, robot: Robot, action: TeleopAction) -> Robot:
+def robot_teleop(*, actor: str, robot: Robot, action: TeleopAction) -> Robot:
     """Ask for teleop to start or stop; the engine sends the robot startTeleop or stopTeleop."""
     with transaction.atomic():
         locked = lock_row(robot)
@@ -109,6 +115,7 @@ def robot_teleop(*, robot: Robot, action: TeleopAction) -> Robot:
         locked.switch_teleop = action == TeleopAction.START
         locked.save(update_fields=["switch_teleop", "updated_at"])
         _queue_instant_action(locked, START_TELEOP if locked.switch_teleop else STOP_TELEOP)
+        write_record(actor=actor, action=WriteAction.ROBOT_TELEOP, object_name=locked.name)
         wake_robot(locked.name)
     return locked
 

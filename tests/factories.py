@@ -10,6 +10,9 @@ from missions.engine import initial_node_status, parse_tree
 from missions.models import Mission
 from robots.models import Robot
 
+# Who the tests' direct service calls are recorded as (WriteRecord.actor).
+TEST_ACTOR = "test"
+
 
 class RobotFactory(factory.django.DjangoModelFactory):
     """A robot with the default spec; its VDA 5050 serial number is its name, as the API makes it."""

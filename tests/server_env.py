@@ -9,4 +9,5 @@ SERVER_ENV = {
     "FLEET_NOTIFY_BACKOFF_SECONDS": "0.1",
     "FLEET_VISIBILITY_TIMEOUT": "5",
     "FLEET_LOG_LEVEL": "INFO",
+    "FLEET_SECRET_KEY": "test-server-secret-key-not-for-production",
 }

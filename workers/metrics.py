@@ -14,11 +14,17 @@ from typing import Any
 import redis
 from django.conf import settings
 from django.db.models import Count
-from django.http import HttpRequest, HttpResponse
+from django.http import HttpResponse
 from django.utils.module_loading import import_string
+from drf_spectacular.utils import extend_schema
 from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, HistogramMetricFamily
 from prometheus_client.registry import Collector
+from rest_framework.negotiation import BaseContentNegotiation
+from rest_framework.parsers import BaseParser
+from rest_framework.renderers import BaseRenderer
+from rest_framework.request import Request
+from rest_framework.views import APIView
 
 from fleet import livestate
 
@@ -123,8 +129,26 @@ class FleetCollector(Collector):
         yield from (online, by_state, missions)
 
 
-def metrics_view(request: HttpRequest) -> HttpResponse:
-    """GET /metrics in the Prometheus text format."""
-    registry = CollectorRegistry()
-    registry.register(FleetCollector())
-    return HttpResponse(generate_latest(registry), content_type=CONTENT_TYPE_LATEST)
+class FirstRendererNegotiation(BaseContentNegotiation):
+    """Whatever the scraper accepts: the metrics are text, and a refusal is the API's JSON."""
+
+    def select_renderer(
+        self, request: Request, renderers: list[BaseRenderer], format_suffix: str | None = None
+    ) -> tuple[BaseRenderer, str]:
+        return renderers[0], renderers[0].media_type
+
+    def select_parser(self, request: Request, parsers: list[BaseParser]) -> BaseParser | None:
+        return parsers[0] if parsers else None
+
+
+@extend_schema(exclude=True)
+class MetricsView(APIView):
+    """GET /metrics in the Prometheus text format; it needs a token like the API (Prometheus sends one with
+    `authorization: {credentials_file: ...}`)."""
+
+    content_negotiation_class = FirstRendererNegotiation
+
+    def get(self, request: Request) -> HttpResponse:
+        registry = CollectorRegistry()
+        registry.register(FleetCollector())
+        return HttpResponse(generate_latest(registry), content_type=CONTENT_TYPE_LATEST)

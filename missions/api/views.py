@@ -13,6 +13,7 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
+from access.authentication import request_actor
 from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request, body_validated
 from missions.api.serializers import (
     NODE_KIND_SERIALIZERS,
@@ -240,14 +241,16 @@ class MissionViewSet(viewsets.GenericViewSet):
 
     def create(self, request: Request) -> Response:
         spec = body_validated(MissionCreateSerializer, request.data)
-        mission = mission_create(name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec)
+        mission = mission_create(
+            actor=request_actor(request), name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec
+        )
         return Response(MissionSerializer(mission).data)
 
     def retrieve(self, request: Request, name: str) -> Response:
         return Response(MissionSerializer(mission_get(name=name)).data)
 
     def destroy(self, request: Request, name: str) -> Response:
-        mission_delete(mission=mission_get(name=name, to_change=True))
+        mission_delete(actor=request_actor(request), mission=mission_get(name=name, to_change=True))
         return Response({"detail": f"{name} is PENDING_DELETE"})
 
     @extend_schema(
@@ -269,7 +272,7 @@ class MissionViewSet(viewsets.GenericViewSet):
     )
     @action(detail=True, methods=["post"])
     def cancel(self, request: Request, name: str) -> Response:
-        mission_cancel(mission=mission_get(name=name))
+        mission_cancel(actor=request_actor(request), mission=mission_get(name=name))
         return Response({"detail": f"Mission {name} will be canceled."})
 
     @extend_schema(
@@ -291,7 +294,9 @@ class MissionViewSet(viewsets.GenericViewSet):
     @action(detail=True, methods=["post"], url_path="update")
     def update_routes(self, request: Request, name: str) -> Response:
         update_nodes = RouteUpdatesField().run_validation(request.data)
-        mission_update_routes(mission=mission_get(name=name), update_nodes=update_nodes)
+        mission_update_routes(
+            actor=request_actor(request), mission=mission_get(name=name), update_nodes=update_nodes
+        )
         return Response(RouteUpdatesField().to_representation(update_nodes))
 
 

@@ -7,6 +7,7 @@ from rest_framework.decorators import action
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from access.authentication import request_actor
 from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, QueryValidationError, bad_request
 from robots.api.serializers import (
     RobotCreateSerializer,
@@ -146,7 +147,9 @@ class RobotViewSet(viewsets.GenericViewSet):
         body = RobotCreateSerializer(data=request.data)
         body.is_valid(raise_exception=True)
         spec = dict(body.validated_data)
-        robot = robot_create(name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec)
+        robot = robot_create(
+            actor=request_actor(request), name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec
+        )
         return Response(RobotSerializer(robot).data)
 
     def retrieve(self, request: Request, name: str) -> Response:
@@ -155,11 +158,13 @@ class RobotViewSet(viewsets.GenericViewSet):
     def update(self, request: Request, name: str) -> Response:
         body = RobotSpecSerializer(data=request.data)
         body.is_valid(raise_exception=True)
-        robot = robot_update_spec(robot=robot_get(name=name, to_change=True), spec=body.validated_data)
+        robot = robot_update_spec(
+            actor=request_actor(request), robot=robot_get(name=name, to_change=True), spec=body.validated_data
+        )
         return Response(RobotSerializer(robot).data)
 
     def destroy(self, request: Request, name: str) -> Response:
-        robot_delete(robot=robot_get(name=name, to_change=True))
+        robot_delete(actor=request_actor(request), robot=robot_get(name=name, to_change=True))
         return Response({"detail": f"{name} is PENDING_DELETE"})
 
     @extend_schema(
@@ -197,5 +202,5 @@ class RobotViewSet(viewsets.GenericViewSet):
         if not query.is_valid():
             raise QueryValidationError(query.errors)
         teleop_action = TeleopAction(query.validated_data["params"])
-        robot_teleop(robot=robot_get(name=name), action=teleop_action)
+        robot_teleop(actor=request_actor(request), robot=robot_get(name=name), action=teleop_action)
         return Response(f"{teleop_action} teleop action received.")

@@ -10,6 +10,7 @@ import pytest
 from fleet import livestate
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
+from tests.factories import TEST_ACTOR
 from vda5050.models import ActionStatus
 from workers.bridge import Bridge
 
@@ -20,7 +21,9 @@ def make_robot(db: None) -> Iterator[Callable[..., Robot]]:
     names: list[str] = []
 
     def make(prefix: str = "bridge", **spec: Any) -> Robot:
-        robot = robot_create(name=f"{prefix}-{uuid.uuid4().hex[:10]}", prefix=None, spec=spec)
+        robot = robot_create(
+            actor=TEST_ACTOR, name=f"{prefix}-{uuid.uuid4().hex[:10]}", prefix=None, spec=spec
+        )
         names.append(robot.name)
         return robot
 

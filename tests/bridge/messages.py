@@ -8,6 +8,7 @@ from missions.robot_step import robot_step
 from missions.services import mission_create
 from robots.models import Robot
 from tests.dispatch.builders import robot_state
+from tests.factories import TEST_ACTOR
 from vda5050.codec import encode, header_for
 from vda5050.models import (
     AgvPosition,
@@ -85,7 +86,12 @@ def running_order(bridge: Bridge, robot: Robot) -> str:
     bridge.handle([state_message(robot, header_id=1, at=0.0)])
     step_requested(robot)
     route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
-    mission_create(name=f"{robot.name}-m", prefix=None, spec={"robot": robot.name, "mission_tree": [route]})
+    mission_create(
+        actor=TEST_ACTOR,
+        name=f"{robot.name}-m",
+        prefix=None,
+        spec={"robot": robot.name, "mission_tree": [route]},
+    )
     orders = [m.content for m in robot_step(name=robot.name).messages if isinstance(m.content, OrderContent)]
     assert len(orders) == 1
     return orders[0].order_id

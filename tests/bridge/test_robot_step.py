@@ -27,6 +27,7 @@ from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, robot_delete
 from tests.bridge.messages import T0, wire
 from tests.dispatch.builders import check_schema, finished, on_order, robot_state
+from tests.factories import TEST_ACTOR
 from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
 from vda5050.topics import Topic
@@ -93,7 +94,10 @@ def instant_actions(outcome: StepOutcome) -> list[Action]:
 def create(name: str, robot: Robot, *tree: dict[str, Any]) -> Mission:
     route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
     return mission_create(
-        name=name, prefix=None, spec={"robot": robot.name, "mission_tree": list(tree) or [route]}
+        actor=TEST_ACTOR,
+        name=name,
+        prefix=None,
+        spec={"robot": robot.name, "mission_tree": list(tree) or [route]},
     )
 
 
@@ -296,7 +300,7 @@ def test_a_canceled_running_mission_gets_a_cancel_order_then_ends_canceled(robot
     [order] = orders(step(robot))
     put_state(robot, header_id=2, state=on_order(order, 0))
     step(robot, after=1.0)
-    mission_cancel(mission=Mission.objects.get(name="m1"))
+    mission_cancel(actor=TEST_ACTOR, mission=Mission.objects.get(name="m1"))
 
     outcome = step(robot, after=2.0)
 
@@ -323,7 +327,10 @@ def test_a_running_mission_deleted_is_canceled_then_removed_and_the_next_one_sta
     create("m2", robot)
     [order] = orders(step(robot))
     put_state(robot, header_id=2, state=on_order(order, 0))
-    assert mission_delete(mission=Mission.objects.get(name="m1")).lifecycle == Lifecycle.PENDING_DELETE
+    assert (
+        mission_delete(actor=TEST_ACTOR, mission=Mission.objects.get(name="m1")).lifecycle
+        == Lifecycle.PENDING_DELETE
+    )
     step(robot, after=1.0)
     [cancel] = InstantAction.objects.filter(robot=robot, action_type="cancelOrder")
 
@@ -338,7 +345,7 @@ def test_a_running_mission_deleted_is_canceled_then_removed_and_the_next_one_sta
 def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_state(robot: Robot) -> None:
     create("m1", robot)
     step(robot)
-    robot_delete(robot=Robot.objects.get(name=robot.name))
+    robot_delete(actor=TEST_ACTOR, robot=Robot.objects.get(name=robot.name))
 
     outcome = step(robot, after=1.0)
 
@@ -354,7 +361,7 @@ def test_a_step_that_deletes_the_robot_sends_nothing_it_had_due(robot: Robot) ->
     create("m1", robot)
     step(robot)
     put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
-    robot_delete(robot=Robot.objects.get(name=robot.name))
+    robot_delete(actor=TEST_ACTOR, robot=Robot.objects.get(name=robot.name))
 
     outcome = step(robot, after=60.0)
 

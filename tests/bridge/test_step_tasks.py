@@ -14,6 +14,7 @@ from missions.services import mission_create
 from robots.models import Robot
 from tests.bridge.messages import steps_queued
 from tests.bridge.test_robot_step import put_state
+from tests.factories import TEST_ACTOR
 from workers import metrics, stepper, steps
 from workers.tasks import step_robots
 
@@ -29,7 +30,9 @@ def _robot_with_mission(make_robot: MakeRobot) -> tuple[Robot, Mission]:
     robot = make_robot(prefix="task")
     Robot.objects.filter(name=robot.name).update(online=True)
     put_state(robot, header_id=1)
-    mission = mission_create(name=None, prefix="task", spec={"robot": robot.name, "mission_tree": [ROUTE]})
+    mission = mission_create(
+        actor=TEST_ACTOR, name=None, prefix="task", spec={"robot": robot.name, "mission_tree": [ROUTE]}
+    )
     return robot, mission
 
 

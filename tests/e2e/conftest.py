@@ -27,6 +27,7 @@ from django.db import DatabaseError, connection
 from django.test import TransactionTestCase
 from rest_framework.test import APIClient
 
+from tests.conftest import authenticated_client
 from tests.server_env import SERVER_ENV
 from tests.vda5050.schemas import validate_message
 
@@ -209,8 +210,8 @@ def stack(
 
 
 @pytest.fixture
-def api() -> APIClient:
-    return APIClient()
+def api(api_token: str) -> APIClient:
+    return authenticated_client(api_token)
 
 
 @dataclass

@@ -26,7 +26,7 @@ from robots.services import robot_create
 from tests.bridge.test_robot_step import orders, put_state
 from tests.database import other_connection
 from tests.dispatch.builders import finished
-from tests.factories import route_node
+from tests.factories import TEST_ACTOR, route_node
 from vda5050.models import ActionStatus
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -101,11 +101,11 @@ def wakes(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str]]:
 def robot(wakes: list[tuple[str, str]]) -> Iterator[Robot]:
     """An online robot whose one mission, "last", runs, and whose latest state says its order is done: the
     next step ends "last" and finds the queue empty."""
-    created = robot_create(name=f"race-{uuid.uuid4().hex[:10]}", prefix=None, spec={})
+    created = robot_create(actor=TEST_ACTOR, name=f"race-{uuid.uuid4().hex[:10]}", prefix=None, spec={})
     Robot.objects.filter(name=created.name).update(online=True)
     InstantAction.objects.filter(robot=created).update(status=ActionStatus.FINISHED.value)
     put_state(created, header_id=1)
-    mission_create(name="last", prefix=None, spec=spec(created.name))
+    mission_create(actor=TEST_ACTOR, name="last", prefix=None, spec=spec(created.name))
     [order] = orders(robot_step(name=created.name))
     put_state(created, header_id=2, state=finished(order))
     wakes.clear()
@@ -173,7 +173,7 @@ def test_a_step_that_ends_the_last_mission_waits_for_a_creation_in_flight_and_st
     def create_and_hold() -> None:
         """The creation inside a transaction that stays open (holding the queue lock) until released."""
         with transaction.atomic():
-            mission_create(name="next", prefix=None, spec=spec(robot.name))
+            mission_create(actor=TEST_ACTOR, name="next", prefix=None, spec=spec(robot.name))
             assert release.wait(10)
 
     creating = OnItsOwnConnection(create_and_hold, CREATION_THREAD).start()
@@ -241,7 +241,7 @@ def test_a_creation_that_waits_for_a_steps_queue_lock_wakes_the_robot_and_the_st
 def test_a_mission_created_while_the_robots_mission_runs_does_not_wake_it(
     robot: Robot, wakes: list[tuple[str, str]]
 ) -> None:
-    mission_create(name="next", prefix=None, spec=spec(robot.name))
+    mission_create(actor=TEST_ACTOR, name="next", prefix=None, spec=spec(robot.name))
 
     assert wakes == []  # the step that ends "last" starts it
     outcome = robot_step(name=robot.name)
@@ -254,7 +254,7 @@ def test_a_mission_created_while_the_robots_mission_runs_does_not_wake_it(
 def test_a_creation_for_a_robot_that_does_not_exist_yet_is_stored_and_wakes_it(
     wakes: list[tuple[str, str]],
 ) -> None:
-    mission = mission_create(name="m1", prefix=None, spec=spec("carter01"))
+    mission = mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec("carter01"))
 
     assert Mission.objects.get(name="m1").queue_position == mission.queue_position
     assert wakes == [("carter01", "MainThread")]
@@ -263,11 +263,11 @@ def test_a_creation_for_a_robot_that_does_not_exist_yet_is_stored_and_wakes_it(
 def test_a_duplicate_name_is_an_object_error_and_leaves_the_connection_usable(
     wakes: list[tuple[str, str]],
 ) -> None:
-    mission_create(name="m1", prefix=None, spec=spec("carter01"))
+    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec("carter01"))
 
     with pytest.raises(ObjectError, match="Object mission with name m1 already exists"):
-        mission_create(name="m1", prefix=None, spec=spec("carter01"))
+        mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec("carter01"))
 
     assert Mission.objects.filter(name="m1").count() == 1
-    mission_create(name="m2", prefix=None, spec=spec("carter01"))
+    mission_create(actor=TEST_ACTOR, name="m2", prefix=None, spec=spec("carter01"))
     assert wakes == [("carter01", "MainThread")]  # m1 woke it; m2 is queued behind m1

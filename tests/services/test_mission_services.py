@@ -8,7 +8,7 @@ from fleet.api import ObjectError, UsageError
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.models import Mission
 from missions.services import mission_cancel, mission_create, mission_delete, mission_update_routes
-from tests.factories import MissionFactory, route_node
+from tests.factories import TEST_ACTOR, MissionFactory, route_node
 
 pytestmark = pytest.mark.django_db
 
@@ -32,7 +32,10 @@ def route(**node) -> dict:
 
 def test_create_stores_the_tree_normalized_and_every_node_pending(woken):
     mission = mission_create(
-        name="m1", prefix=None, spec=spec(route(), {"name": "s", "selector": {}}, route(parent="s"))
+        actor=TEST_ACTOR,
+        name="m1",
+        prefix=None,
+        spec=spec(route(), {"name": "s", "selector": {}}, route(parent="s")),
     )
 
     stored = Mission.objects.get(name="m1")
@@ -65,19 +68,20 @@ def test_create_wakes_the_robot_unless_queued_behind_an_unfinished_mission(woken
     if earlier is not None:
         MissionFactory(name="earlier", **earlier)
 
-    mission_create(name="m1", prefix=None, spec=spec(route()))
+    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec(route()))
 
     assert woken == (["carter01"] if wakes else [])
 
 
 def test_a_mission_created_canceled_still_wakes_an_idle_robot(woken):
-    mission_create(name="m1", prefix=None, spec=spec(route(), needs_canceled=True))
+    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec(route(), needs_canceled=True))
 
     assert woken == ["carter01"]
 
 
 def test_create_returns_the_stored_row(woken):
     mission = mission_create(
+        actor=TEST_ACTOR,
         name="m1",
         prefix=None,
         spec=spec(route(name="go"), timeout=60.0, update_nodes={"go": {"waypoints": [WAYPOINT]}}),
@@ -92,8 +96,8 @@ def test_create_returns_the_stored_row(woken):
 
 
 def test_queue_positions_follow_creation_order():
-    first = mission_create(name="a", prefix=None, spec=spec(route()))
-    second = mission_create(name="b", prefix=None, spec=spec(route()))
+    first = mission_create(actor=TEST_ACTOR, name="a", prefix=None, spec=spec(route()))
+    second = mission_create(actor=TEST_ACTOR, name="b", prefix=None, spec=spec(route()))
 
     assert first.queue_position < second.queue_position
 
@@ -109,7 +113,7 @@ def test_queue_positions_follow_creation_order():
 )
 def test_create_refuses_bad_trees_from_any_caller(fields, message_part):
     with pytest.raises(UsageError, match=re.escape(message_part)):
-        mission_create(name="m1", prefix=None, spec={**spec(route()), **fields})
+        mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec={**spec(route()), **fields})
 
     assert not Mission.objects.exists()
 
@@ -118,7 +122,7 @@ def test_a_duplicate_name_is_the_reference_error_and_wakes_nothing(django_captur
     MissionFactory(name="m1", robot="carter09")
 
     with django_capture_on_commit_callbacks() as callbacks, pytest.raises(ObjectError) as raised:
-        mission_create(name="m1", prefix=None, spec=spec(route()))
+        mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec(route()))
 
     assert raised.value.detail == "Object mission with name m1 already exists"
     assert callbacks == []
@@ -130,11 +134,11 @@ def test_cancel_reads_the_state_from_the_database_not_the_callers_copy():
     Mission.objects.filter(name="m1").update(state=MissionState.COMPLETED)
 
     with pytest.raises(UsageError, match=re.escape("Completed mission m1 can't be canceled.")):
-        mission_cancel(mission=mission)
+        mission_cancel(actor=TEST_ACTOR, mission=mission)
 
 
 def test_cancel_of_a_queued_mission_ends_it(woken):
-    canceled = mission_cancel(mission=MissionFactory(name="m1", robot="carter07"))
+    canceled = mission_cancel(actor=TEST_ACTOR, mission=MissionFactory(name="m1", robot="carter07"))
 
     stored = Mission.objects.get(name="m1")
     assert canceled == stored
@@ -148,7 +152,7 @@ def test_cancel_of_a_queued_mission_ends_it(woken):
 
 
 def test_cancel_of_a_running_mission_leaves_the_ending_to_the_engine():
-    mission_cancel(mission=MissionFactory(name="m1", running=True))
+    mission_cancel(actor=TEST_ACTOR, mission=MissionFactory(name="m1", running=True))
 
     stored = Mission.objects.get(name="m1")
     assert (stored.state, stored.needs_canceled, stored.failure_category) == (
@@ -159,8 +163,8 @@ def test_cancel_of_a_running_mission_leaves_the_ending_to_the_engine():
 
 
 def test_delete_returns_none_once_removed_and_the_mission_while_it_runs():
-    assert mission_delete(mission=MissionFactory(name="queued")) is None
-    running = mission_delete(mission=MissionFactory(name="running", running=True))
+    assert mission_delete(actor=TEST_ACTOR, mission=MissionFactory(name="queued")) is None
+    running = mission_delete(actor=TEST_ACTOR, mission=MissionFactory(name="running", running=True))
 
     assert running is not None
     assert (running.lifecycle, running.needs_canceled) == (Lifecycle.PENDING_DELETE, True)
@@ -171,8 +175,8 @@ def test_update_routes_merges_and_returns_the_mission(woken):
     mission = MissionFactory(name="m1", robot="carter03", mission_tree=[route_node("a"), route_node("b")])
     new_a = {"waypoints": [{**WAYPOINT, "x": 9.0}]}
 
-    updated = mission_update_routes(mission=mission, update_nodes={"a": new_a})
-    updated = mission_update_routes(mission=updated, update_nodes={"b": new_a})
+    updated = mission_update_routes(actor=TEST_ACTOR, mission=mission, update_nodes={"a": new_a})
+    updated = mission_update_routes(actor=TEST_ACTOR, mission=updated, update_nodes={"b": new_a})
 
     assert updated.update_nodes == {"a": new_a, "b": new_a}
     assert Mission.objects.get(name="m1").update_nodes == {"a": new_a, "b": new_a}

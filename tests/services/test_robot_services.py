@@ -8,13 +8,13 @@ from fleet.api import ObjectError, UsageError
 from robots.choices import Lifecycle, TeleopAction
 from robots.models import Robot
 from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
-from tests.factories import MissionFactory, RobotFactory
+from tests.factories import TEST_ACTOR, MissionFactory, RobotFactory
 
 pytestmark = pytest.mark.django_db
 
 
 def test_create_with_an_empty_spec_gives_the_defaults(woken):
-    robot = robot_create(name="carter01", prefix=None, spec={})
+    robot = robot_create(actor=TEST_ACTOR, name="carter01", prefix=None, spec={})
 
     stored = Robot.objects.get(name="carter01")
     assert stored == robot
@@ -25,6 +25,7 @@ def test_create_with_an_empty_spec_gives_the_defaults(woken):
 
 def test_create_maps_the_api_shaped_spec_to_the_model():
     robot = robot_create(
+        actor=TEST_ACTOR,
         name=None,
         prefix="amr",
         spec={
@@ -50,7 +51,7 @@ def test_create_maps_the_api_shaped_spec_to_the_model():
 
 def test_create_registers_exactly_one_wake_for_after_commit(django_capture_on_commit_callbacks):
     with django_capture_on_commit_callbacks() as callbacks:
-        robot_create(name="carter01", prefix=None, spec={})
+        robot_create(actor=TEST_ACTOR, name="carter01", prefix=None, spec={})
 
     assert len(callbacks) == 1
 
@@ -59,7 +60,7 @@ def test_a_refused_create_wakes_nothing(django_capture_on_commit_callbacks):
     RobotFactory(name="carter01")
 
     with django_capture_on_commit_callbacks() as callbacks, pytest.raises(ObjectError):
-        robot_create(name="carter01", prefix=None, spec={})
+        robot_create(actor=TEST_ACTOR, name="carter01", prefix=None, spec={})
 
     assert callbacks == []
 
@@ -75,7 +76,7 @@ def test_a_refused_create_wakes_nothing(django_capture_on_commit_callbacks):
 )
 def test_create_refuses_bad_input_from_any_caller(name, spec, message_part):
     with pytest.raises(UsageError, match=re.escape(message_part)):
-        robot_create(name=name, prefix=None, spec=spec)
+        robot_create(actor=TEST_ACTOR, name=name, prefix=None, spec=spec)
 
     assert not Robot.objects.exists()
 
@@ -85,7 +86,7 @@ def test_update_spec_replaces_the_whole_spec(woken):
         name="carter01", labels=["x"], heartbeat_timeout=3.0, manufacturer="Acme", online=True
     )
 
-    updated = robot_update_spec(robot=robot, spec={"switch_teleop": True})
+    updated = robot_update_spec(actor=TEST_ACTOR, robot=robot, spec={"switch_teleop": True})
 
     stored = Robot.objects.get(name="carter01")
     assert updated == stored
@@ -100,13 +101,13 @@ def test_update_spec_of_a_robot_removed_meanwhile_is_the_reference_error():
     Robot.objects.filter(name="carter01").delete()
 
     with pytest.raises(ObjectError, match="Could not find object carter01"):
-        robot_update_spec(robot=robot, spec={})
+        robot_update_spec(actor=TEST_ACTOR, robot=robot, spec={})
 
 
 def test_delete_returns_none_once_the_robot_is_removed(woken):
     robot = RobotFactory(name="carter01")
 
-    assert robot_delete(robot=robot) is None
+    assert robot_delete(actor=TEST_ACTOR, robot=robot) is None
     assert not Robot.objects.exists()
     assert woken == ["carter01"]
 
@@ -115,7 +116,7 @@ def test_delete_of_a_robot_running_a_mission_returns_it_pending_delete():
     robot = RobotFactory(name="carter01", state="ON_TASK")
     MissionFactory(robot="carter01", running=True)
 
-    remaining = robot_delete(robot=robot)
+    remaining = robot_delete(actor=TEST_ACTOR, robot=robot)
 
     assert remaining is not None
     assert remaining.lifecycle == Lifecycle.PENDING_DELETE
@@ -127,13 +128,13 @@ def test_teleop_reads_the_state_from_the_database_not_the_callers_copy():
     Robot.objects.filter(name="carter01").update(state="CHARGING")
 
     with pytest.raises(UsageError, match="CHARGING"):
-        robot_teleop(robot=robot, action=TeleopAction.START)
+        robot_teleop(actor=TEST_ACTOR, robot=robot, action=TeleopAction.START)
 
 
 def test_teleop_start_and_stop(woken):
     robot = RobotFactory(name="carter01", state="ON_TASK")
 
-    assert robot_teleop(robot=robot, action=TeleopAction.START).switch_teleop is True
-    assert robot_teleop(robot=robot, action=TeleopAction.STOP).switch_teleop is False
+    assert robot_teleop(actor=TEST_ACTOR, robot=robot, action=TeleopAction.START).switch_teleop is True
+    assert robot_teleop(actor=TEST_ACTOR, robot=robot, action=TeleopAction.STOP).switch_teleop is False
     assert Robot.objects.get(name="carter01").switch_teleop is False
     assert woken == ["carter01", "carter01"]

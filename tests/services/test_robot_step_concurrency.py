@@ -15,6 +15,7 @@ from missions.robot_step import robot_step
 from missions.services import mission_create
 from robots.models import Robot
 from robots.services import robot_create
+from tests.factories import TEST_ACTOR
 from vda5050.codec import encode, header_for, parse_state
 from vda5050.models import (
     AgvPosition,
@@ -52,7 +53,7 @@ def idle_state(robot: str, header_id: int) -> bytes:
 @pytest.fixture
 def online_robot() -> Iterator[str]:
     name = f"conc-{uuid.uuid4().hex[:8]}"
-    robot_create(name=name, prefix=None, spec={})
+    robot_create(actor=TEST_ACTOR, name=name, prefix=None, spec={})
     Robot.objects.filter(name=name).update(online=True)
     pipe = livestate.client().pipeline()
     payload = idle_state(name, 1)
@@ -67,7 +68,9 @@ def online_robot() -> Iterator[str]:
 
 def test_concurrent_steps_of_one_robot_send_the_first_order_once(online_robot: str) -> None:
     route = {"name": "r", "route": {"waypoints": [{"x": 1, "y": 0}]}}
-    mission_create(name=None, prefix="m", spec={"robot": online_robot, "mission_tree": [route]})
+    mission_create(
+        actor=TEST_ACTOR, name=None, prefix="m", spec={"robot": online_robot, "mission_tree": [route]}
+    )
     barrier = threading.Barrier(4)
     sent: list[str] = []
     lock = threading.Lock()

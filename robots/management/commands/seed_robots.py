@@ -4,6 +4,7 @@ from typing import Any
 
 from django.core.management.base import BaseCommand, CommandError, CommandParser
 
+from access.choices import command_actor
 from fleet.api import UsageError
 from robots.models import Robot
 from robots.services import robot_create
@@ -44,7 +45,7 @@ class Command(BaseCommand):
                 self.stdout.write(f"Skipped {name}: already exists.")
                 continue
             try:
-                robot_create(name=name, prefix=None, spec={})
+                robot_create(actor=command_actor("seed_robots"), name=name, prefix=None, spec={})
             except UsageError as error:
                 raise CommandError(error.message) from error
             self.stdout.write(self.style.SUCCESS(f"Created {name}."))

@@ -1,0 +1,41 @@
+"""API tokens (created here, the plaintext is shown once as a message; revoking cannot be undone) and the
+write records, read-only."""
+
+from django.contrib import admin
+from django.http import HttpRequest
+from rest_framework_api_key.admin import APIKeyModelAdmin
+from rest_framework_api_key.models import APIKey
+
+from access.models import ApiToken, WriteRecord
+
+# The library's own key model is not used: ApiToken is.
+admin.site.unregister(APIKey)
+
+
+@admin.register(ApiToken)
+class ApiTokenAdmin(APIKeyModelAdmin):
+    list_display = ("name", "prefix", "read_only", "created", "last_used", "expiry_date", "revoked")
+    list_filter = ("read_only", "revoked", "created")
+    fields = ("name", "read_only", "expiry_date", "revoked", "prefix", "created", "last_used")
+
+    def get_readonly_fields(self, request: HttpRequest, obj: ApiToken | None = None) -> tuple[str, ...]:
+        fields = (*super().get_readonly_fields(request, obj), "created", "last_used")
+        # What a token may do is fixed once it exists: a new token is made for other rights.
+        return fields if obj is None else (*fields, "read_only")
+
+
+@admin.register(WriteRecord)
+class WriteRecordAdmin(admin.ModelAdmin):
+    list_display = ("at", "actor", "action", "object_name")
+    list_filter = ("action",)
+    search_fields = ("actor", "object_name")
+    date_hierarchy = "at"
+
+    def has_add_permission(self, request: HttpRequest) -> bool:
+        return False
+
+    def has_change_permission(self, request: HttpRequest, obj: WriteRecord | None = None) -> bool:
+        return False
+
+    def has_delete_permission(self, request: HttpRequest, obj: WriteRecord | None = None) -> bool:
+        return False

@@ -1,0 +1,31 @@
+"""The vocabulary of access: who made a write (an actor) and which write it was."""
+
+from django.db import models
+
+# The actor of a write in open mode (FLEET_API_AUTH=off), where requests carry no identity.
+ANONYMOUS = "anonymous"
+
+
+def token_actor(name: str) -> str:
+    return f"token:{name}"
+
+
+def user_actor(username: str) -> str:
+    return f"user:{username}"
+
+
+def command_actor(command: str) -> str:
+    return f"command:{command}"
+
+
+class WriteAction(models.TextChoices):
+    """Every write the API (and the admin) can make; one WriteRecord each."""
+
+    ROBOT_CREATE = "robot_create"
+    ROBOT_UPDATE = "robot_update"
+    ROBOT_DELETE = "robot_delete"
+    ROBOT_TELEOP = "robot_teleop"
+    MISSION_CREATE = "mission_create"
+    MISSION_CANCEL = "mission_cancel"
+    MISSION_UPDATE = "mission_update"
+    MISSION_DELETE = "mission_delete"

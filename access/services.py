@@ -1,0 +1,63 @@
+"""Changes to API tokens, and the record of who made each write (called by the robot and mission services
+inside their own transaction)."""
+
+import os
+from pathlib import Path
+
+from django.db import IntegrityError, transaction
+
+from access.choices import WriteAction
+from access.models import TOKEN_NAME_MAX_LENGTH, ApiToken, WriteRecord
+from access.selectors import api_token_for_key
+from fleet.api import UsageError
+
+# The token `make run` keeps for the developer (`api_token dev`).
+DEV_TOKEN_NAME = "development"
+
+
+def api_token_create(*, name: str, read_only: bool = False) -> tuple[ApiToken, str]:
+    """A new token and its plaintext, which is stored nowhere (only its SHA-512 hash is)."""
+    name = name.strip()
+    if not name or len(name) > TOKEN_NAME_MAX_LENGTH:
+        raise UsageError(f"A token name has 1 to {TOKEN_NAME_MAX_LENGTH} characters.")
+    try:
+        with transaction.atomic():
+            return ApiToken.objects.create_key(name=name, read_only=read_only)
+    except IntegrityError as error:
+        raise UsageError(
+            f'A token named "{name}" already exists; revoke it first or pick another name.'
+        ) from error
+
+
+def api_token_revoke(*, name: str) -> ApiToken:
+    """Revoke the usable token called `name`: it is refused from now on (this cannot be undone)."""
+    with transaction.atomic():
+        token = ApiToken.objects.select_for_update().filter(name=name, revoked=False).first()
+        if token is None:
+            raise UsageError(f'No token named "{name}" that is not revoked already.')
+        token.revoked = True
+        token.save(update_fields=["revoked"])
+    return token
+
+
+def dev_token_ensure(*, path: Path) -> str:
+    """The development token's plaintext, kept in `path` (git-ignored): the one stored there while it is
+    still usable, else a new one (replacing any earlier development token)."""
+    if path.exists():
+        key = path.read_text().strip()
+        if api_token_for_key(key) is not None:
+            return key
+    with transaction.atomic():
+        if ApiToken.objects.filter(name=DEV_TOKEN_NAME, revoked=False).exists():
+            api_token_revoke(name=DEV_TOKEN_NAME)
+        _, key = api_token_create(name=DEV_TOKEN_NAME)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(descriptor, "w") as file:
+        file.write(key + "\n")
+    return key
+
+
+def write_record(*, actor: str, action: WriteAction, object_name: str) -> WriteRecord:
+    """Record a write; call it inside the write's transaction, so both are stored or neither."""
+    return WriteRecord.objects.create(actor=actor, action=action, object_name=object_name)
