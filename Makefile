@@ -13,17 +13,23 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-database: install
+# The development machine's own secret key (git-ignored), made once: the settings refuse the built-in one.
+.fleet/secret-key:
+	mkdir -p .fleet
+	umask 077 && python3 -c 'import secrets; print(secrets.token_urlsafe(50))' > $@
+
+database: install .fleet/secret-key
 	$(PY) deploy/ensure_database.py
 	$(PY) manage.py migrate --noinput
 
 run: database
 	$(PY) manage.py collectstatic --noinput --verbosity 0
+	$(PY) manage.py api_token dev
 	$(VENV)/bin/honcho start -f deploy/Procfile
 
 test: install
 	$(VENV)/bin/ruff check .
-	$(PY) deploy/ensure_database.py
+	DJANGO_SETTINGS_MODULE=fleet.test_settings $(PY) deploy/ensure_database.py
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 lint: install

@@ -33,8 +33,9 @@ class ApiError(RuntimeError):
 
 
 class DispatchApi:
-    def __init__(self, base_url: str, concurrency: int) -> None:
+    def __init__(self, base_url: str, concurrency: int, token: str | None = None) -> None:
         self.base_url = base_url.rstrip("/")
+        self._auth = {"Authorization": f"Bearer {token}"} if token else {}
         url = urlsplit(self.base_url)
         self._host, self._port, self._root = url.hostname or "127.0.0.1", url.port or 80, url.path
         self._executor = ThreadPoolExecutor(max_workers=concurrency, thread_name_prefix="http")
@@ -101,7 +102,7 @@ class DispatchApi:
             # As urllib3 does: without it, Nagle's algorithm and delayed ACKs hold small requests back.
             connection.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._local.connection = connection
-        headers = {"Content-Type": "application/json"} if body is not None else {}
+        headers = {**self._auth, "Content-Type": "application/json"} if body is not None else self._auth
         connection.request(method, target, body=body, headers=headers)
         response = connection.getresponse()
         return response.status, response.read()

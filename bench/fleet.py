@@ -57,6 +57,7 @@ class Options:
 
     mode: str = RUN
     base_url: str = "http://127.0.0.1:5000"
+    api_token: str | None = None  # sent as Authorization: Bearer; the reference needs none
     mqtt_host: str = "127.0.0.1"
     mqtt_port: int = 1883
     mqtt_prefix: str = "uagv/v2/RobotCompany"
@@ -150,7 +151,7 @@ class Bench:
     def __init__(self, options: Options) -> None:
         self.options = options
         self.loop = asyncio.get_running_loop()
-        self.api = DispatchApi(options.base_url, options.http_concurrency)
+        self.api = DispatchApi(options.base_url, options.http_concurrency, options.api_token)
         broker = BrokerSettings(
             host=options.mqtt_host,
             port=options.mqtt_port,
@@ -562,7 +563,7 @@ class Bench:
             "mode": options.mode,
             "run_id": options.run_id,
             "started_at": started_at.isoformat(),
-            "options": {**asdict(options), "output": str(options.output)},
+            "options": {**asdict(options), "output": str(options.output), "api_token": None},
             "machine": {**measure.machine(), "cpu_speed_ms": cpu_speed_ms, **measured["busy_and_steal"]},
             "window_seconds": round(seconds, 2),
             "settle_seconds": self.settle_seconds,
@@ -646,6 +647,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--mode", choices=(RUN, IDLE), default=RUN, help="run: missions; idle: states only")
     parser.add_argument("--base-url", default=defaults.base_url, help="the server's REST API")
+    parser.add_argument(
+        "--api-token",
+        default=os.environ.get("FLEET_API_TOKEN"),
+        help="bearer token for the REST API (python manage.py api_token create bench; default: "
+        "$FLEET_API_TOKEN); the reference needs none",
+    )
     parser.add_argument("--mqtt-host", default=defaults.mqtt_host)
     parser.add_argument("--mqtt-port", type=int, default=defaults.mqtt_port)
     parser.add_argument(

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import secrets
 import subprocess
 import sys
 import time
@@ -46,6 +47,8 @@ STACK_ENV = {
     "FLEET_API_PORT": str(API_PORT),
     "FLEET_MQTT_PORT": str(BROKER_PORT),
     "FLEET_LOG_LEVEL": "WARNING",
+    # The stack's own key (the settings refuse the built-in development one); nothing outlives the stack.
+    "FLEET_SECRET_KEY": secrets.token_urlsafe(50),
 }
 # The fleets the suites run (bench.fleet arguments without the measurement window). As in the issue's
 # comparison with the reference: one route node per mission, queue depth 2, 1 Hz state. The realistic
@@ -187,7 +190,8 @@ def _psql(command: str) -> str:
 
 
 @contextmanager
-def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[None]:
+def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[str]:
+    """The benchmark's server processes on a fresh database; yields an API token for the fleet's requests."""
     env = {**os.environ, **STACK_ENV}
     # Every suite starts from an empty database: missions of earlier runs would slow the sweeps down.
     subprocess.run(
@@ -195,6 +199,7 @@ def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[None]:
     )
     subprocess.run([sys.executable, "deploy/ensure_database.py"], cwd=ROOT, env=env, check=True)
     subprocess.run([sys.executable, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env, check=True)
+    token = api_token_create(env, "bench")
     redis.Redis.from_url(STACK_ENV["FLEET_REDIS_URL"]).flushdb()
     logs.mkdir(parents=True, exist_ok=True)
     running = {
@@ -205,7 +210,7 @@ def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[None]:
     }
     try:
         _wait_for_api()
-        yield
+        yield token
         # Figures measured with a server process gone (a crashed bridge, say) describe another layout.
         exited = [name for name, process in running.items() if process.poll() is not None]
         if exited:
@@ -215,6 +220,19 @@ def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[None]:
             process.terminate()
         for process in running.values():
             process.wait(timeout=60)
+
+
+def api_token_create(env: dict[str, str], name: str) -> str:
+    """A new API token in the database `env` names (`api_token create` prints it alone on its last line)."""
+    done = subprocess.run(
+        [sys.executable, "manage.py", "api_token", "create", name],
+        cwd=ROOT,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return done.stdout.splitlines()[-1]
 
 
 def _count(number: int, what: str) -> str:
@@ -252,12 +270,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     label = "mission-dispatch"
     if (args.bridges, args.workers) != (1, 1):
         label += f" ({_count(args.bridges, 'bridge')}, {_count(args.workers, 'worker')})"
-    with autovacuum(), stack(args.output / "logs", bridges=args.bridges, workers=args.workers):
+    with autovacuum(), stack(args.output / "logs", bridges=args.bridges, workers=args.workers) as token:
         for name, run in SUITES[args.suite].items():
             print(f"--- {name}", flush=True)
             fleet.main(
                 [
                     *CLIENT_ARGS,
+                    "--api-token",
+                    token,
                     "--label",
                     label,
                     "--output",

@@ -109,7 +109,9 @@ def test_the_api_runs_below_the_dispatch_path_in_cpu_priority(server: Server) ->
     assert {os.getpriority(os.PRIO_PROCESS, pid) for pid in workers} == {os.getpriority(os.PRIO_PROCESS, api)}
 
 
-def test_ten_second_run_completes_missions_with_valid_messages(server: Server, tmp_path: Path) -> None:
+def test_ten_second_run_completes_missions_with_valid_messages(
+    server: Server, api_token: str, tmp_path: Path
+) -> None:
     run_id = uuid.uuid4().hex[:6]
     capture = Capture(f"bench-{run_id}-")
     try:
@@ -120,6 +122,8 @@ def test_ten_second_run_completes_missions_with_valid_messages(server: Server, t
                 "bench.fleet",
                 "--base-url",
                 server.base_url,
+                "--api-token",
+                api_token,
                 "--mqtt-host",
                 settings.MQTT_HOST,
                 "--mqtt-port",
@@ -220,6 +224,6 @@ def _free_port() -> int:
 
 def _answers(base_url: str) -> bool:
     try:
-        return requests.get(f"{base_url}/robot", timeout=2).status_code == 200
+        return requests.get(f"{base_url}/health", timeout=2).status_code == 200
     except requests.RequestException:
         return False

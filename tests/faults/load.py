@@ -82,8 +82,9 @@ def plan_missions(rng: random.Random, robots: list[RobotConfig], count: int) -> 
 class Api:
     """A thread-safe REST client that records every request it makes (`attempts`)."""
 
-    def __init__(self, base_url: str) -> None:
+    def __init__(self, base_url: str, token: str) -> None:
         self.base_url = base_url
+        self.token = token
         self.attempts: list[HttpAttempt] = []
         self._lock = threading.Lock()
         self._local = threading.local()
@@ -92,6 +93,7 @@ class Api:
         session = getattr(self._local, "session", None)
         if session is None:
             session = self._local.session = requests.Session()
+            session.headers["Authorization"] = f"Bearer {self.token}"
         return session
 
     def request(

@@ -230,7 +230,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         observer = Observer(stack.mqtt_port)
         try:
             observer.wait_subscribed()
-            api = Api(stack.api_url)
+            api = Api(stack.api_url, stack.api_token)
             for robot in stack.robots:
                 if not api.post_retrying("/robot", {"name": robot.name}, give_up_after=60):
                     raise RuntimeError(f"robot {robot.name} could not be created: {api.snapshot()[-1]}")

@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.suite import api_command, worker_command
+from bench.suite import api_command, api_token_create, worker_command
 from simulator.config import RobotConfig, spread_robots
 from tests.faults.checks import ProcessExit
 from tests.private_redis import redis_server_command
@@ -310,6 +310,7 @@ class Stack:
         self._watching = threading.Event()
         self._watcher: threading.Thread | None = None
         self.env = self._env()
+        self.api_token = ""  # the load's bearer token, made in the stack's database (_database)
 
     @property
     def api_url(self) -> str:
@@ -378,6 +379,7 @@ class Stack:
             done = subprocess.run(argv, cwd=ROOT, env=self.env, capture_output=True, text=True, check=False)
             if done.returncode != 0:
                 raise RuntimeError(f"{' '.join(argv[1:])} failed: {done.stdout}{done.stderr}")
+        self.api_token = api_token_create(self.env, "faults")
 
     def _ours(self) -> None:
         """The processes of deploy/Procfile on the private services, and the simulator."""

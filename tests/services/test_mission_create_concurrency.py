@@ -76,7 +76,7 @@ class OnItsOwnConnection:
 
 def creation(name: str, robot: str) -> OnItsOwnConnection:
     """mission_create on the thread named CREATION_THREAD."""
-    call = partial(mission_create, name=name, prefix=None, spec=spec(robot))
+    call = partial(mission_create, actor=TEST_ACTOR, name=name, prefix=None, spec=spec(robot))
     return OnItsOwnConnection(call, CREATION_THREAD)
 
 
