@@ -1,7 +1,8 @@
 """API tokens (created here, the plaintext is shown once as a message; revoking cannot be undone) and the
 write records, read-only."""
 
-from django.contrib import admin
+from django import forms
+from django.contrib import admin, messages
 from django.http import HttpRequest
 from rest_framework_api_key.admin import APIKeyModelAdmin
 from rest_framework_api_key.models import APIKey
@@ -22,6 +23,18 @@ class ApiTokenAdmin(APIKeyModelAdmin):
         fields = (*super().get_readonly_fields(request, obj), "created", "last_used")
         # What a token may do is fixed once it exists: a new token is made for other rights.
         return fields if obj is None else (*fields, "read_only")
+
+    def save_model(self, request: HttpRequest, obj: ApiToken, form: forms.ModelForm, change: bool) -> None:
+        if change:
+            obj.save()
+            return
+        key = ApiToken.objects.assign_key(obj)
+        obj.save()
+        self.message_user(
+            request,
+            f'The new API token "{obj.name}" (store it now: it is never shown again): {key}',
+            messages.WARNING,
+        )
 
 
 @admin.register(WriteRecord)

@@ -33,7 +33,7 @@ def env_bool(name: str, default: bool) -> bool:
 
 DEBUG = env_bool("FLEET_DEBUG", False)
 # Files `make run` keeps for a development machine (git-ignored): its secret key and its API token.
-LOCAL_DIR = BASE_DIR / ".fleet"
+LOCAL_DIR = Path(env_str("FLEET_LOCAL_DIR", str(BASE_DIR / ".fleet")))
 LOCAL_SECRET_KEY_FILE = LOCAL_DIR / "secret-key"
 DEV_TOKEN_FILE = LOCAL_DIR / "dev-token"
 DEVELOPMENT_SECRET_KEY = "insecure-development-key-change-me-in-production"

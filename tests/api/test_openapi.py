@@ -203,3 +203,38 @@ def test_the_schema_states_the_limits(schema):
     assert (most_recent["minimum"], most_recent["maximum"]) == (0, 2**63 - 1)
     assert names["maxItems"] == settings.API_MAX_FILTER_VALUES
     assert (names["items"]["minLength"], names["items"]["pattern"]) == (1, "^[^\\u0000]*$")
+
+
+PUBLIC_OPERATIONS = {("/health", "get")}
+
+
+def test_the_bearer_scheme_is_declared_for_swagger_uis_authorize(schema):
+    assert schema["components"]["securitySchemes"]["bearerAuth"] == {
+        "type": "http",
+        "scheme": "bearer",
+        "description": "An API token (`python manage.py api_token create NAME`).",
+    }
+
+
+def test_every_protected_operation_needs_credentials_and_declares_401_and_403(schema):
+    for path, operations in schema["paths"].items():
+        for method, operation in operations.items():
+            if (path, method) in PUBLIC_OPERATIONS:
+                assert "security" not in operation, path
+                assert not {"401", "403"} & set(operation["responses"]), path
+                continue
+            assert operation["security"] == [{"bearerAuth": []}, {"cookieAuth": []}], f"{method} {path}"
+            for status in ("401", "403"):
+                body = operation["responses"][status]["content"]["application/json"]
+                assert body["schema"] == {"$ref": "#/components/schemas/AuthError"}, f"{method} {path}"
+
+
+def test_in_open_mode_the_schema_asks_for_no_credentials(settings):
+    settings.API_AUTH = False
+
+    schema = SchemaGenerator().get_schema(request=None, public=True)
+
+    for operations in schema["paths"].values():
+        for operation in operations.values():
+            assert "security" not in operation
+            assert not {"401", "403"} & set(operation["responses"])

@@ -1,0 +1,171 @@
+"""Who may call which endpoint, for every endpoint the URLconf has (tests/access/endpoints.py): 401 without
+usable credentials, 403 for a read-only token's writes, reads for any usable token; public endpoints open."""
+
+import pytest
+from django.test import override_settings
+from rest_framework.test import APIClient
+
+from access.models import WriteRecord
+from access.permissions import NOT_AUTHENTICATED
+from access.services import api_token_create, api_token_revoke
+from missions.models import Mission
+from robots.models import Robot
+from tests.access.endpoints import PUBLIC_PATHS, Endpoint, endpoints
+from tests.conftest import authenticated_client
+from tests.factories import MissionFactory, RobotFactory
+
+pytestmark = pytest.mark.django_db
+
+NAME = "acc1"  # the robot and the mission every path parameter names
+ENDPOINTS = endpoints(NAME)
+PROTECTED = [endpoint for endpoint in ENDPOINTS if endpoint.path not in PUBLIC_PATHS]
+PUBLIC = [endpoint for endpoint in ENDPOINTS if endpoint.path in PUBLIC_PATHS]
+READS = [endpoint for endpoint in PROTECTED if not endpoint.writes]
+WRITES = [endpoint for endpoint in PROTECTED if endpoint.writes]
+# A body each write accepts (the read-write case must reach the view, not stop at validation).
+WRITE_BODIES = {
+    "POST /robot": {"name": "acc2"},
+    "PUT /robot/acc1": {"heartbeat_timeout": 10},
+    "POST /mission": {"name": "acc2", "robot": NAME, "mission_tree": [{"name": "c", "constant": {}}]},
+    "POST /mission/acc1/update": {},
+}
+WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
+
+
+@pytest.fixture(autouse=True)
+def objects() -> None:
+    RobotFactory(name=NAME)
+    MissionFactory(name=NAME, robot=NAME)
+
+
+def call(client: APIClient, endpoint: Endpoint):
+    key = str(endpoint)
+    return getattr(client, endpoint.method)(
+        endpoint.path + WRITE_QUERIES.get(key, ""), WRITE_BODIES.get(key), format="json"
+    )
+
+
+def assert_unauthenticated(response, endpoint: Endpoint) -> None:
+    assert response.status_code == 401, f"{endpoint}: {response.status_code} {response.content[:200]}"
+    assert response["WWW-Authenticate"].startswith("Bearer"), endpoint
+    assert isinstance(response.json()["detail"], str), endpoint
+
+
+def test_the_walk_finds_every_endpoint_of_the_reference_and_ours():
+    assert {str(endpoint) for endpoint in ENDPOINTS} >= {
+        "GET /robot",
+        "POST /robot",
+        "PUT /robot/acc1",
+        "POST /robot/acc1/teleop",
+        "POST /mission/acc1/cancel",
+        "POST /mission/acc1/update",
+        "DELETE /mission/acc1",
+        "GET /metrics",
+        "GET /behaviors",
+    }
+    assert {endpoint.path for endpoint in PUBLIC} == PUBLIC_PATHS
+
+
+@pytest.mark.parametrize("endpoint", PROTECTED, ids=str)
+def test_without_a_token_every_protected_endpoint_answers_401(endpoint):
+    response = call(APIClient(), endpoint)
+
+    assert_unauthenticated(response, endpoint)
+    assert response.json() == {"detail": NOT_AUTHENTICATED}
+
+
+@pytest.mark.parametrize("endpoint", PROTECTED, ids=str)
+@pytest.mark.parametrize(
+    "header",
+    ["Bearer abcdefgh.0123456789abcdef0123456789abcdef", "Bearer not-a-token\x7f", "Bearer ", "Bearer a.b.c"],
+    ids=["unknown", "garbage", "empty", "dots"],
+)
+def test_a_bad_token_answers_401_everywhere(endpoint, header):
+    client = APIClient()
+    client.credentials(HTTP_AUTHORIZATION=header)
+
+    assert_unauthenticated(call(client, endpoint), endpoint)
+
+
+@pytest.mark.parametrize("endpoint", PROTECTED, ids=str)
+def test_a_revoked_token_answers_401_everywhere(endpoint):
+    _, key = api_token_create(name="gone")
+    api_token_revoke(name="gone")
+
+    response = call(authenticated_client(key), endpoint)
+
+    assert_unauthenticated(response, endpoint)
+    assert "revoked" in response.json()["detail"]
+
+
+@pytest.mark.parametrize("endpoint", WRITES, ids=str)
+def test_a_read_only_token_may_not_write(endpoint):
+    _, key = api_token_create(name="dashboard", read_only=True)
+
+    response = call(authenticated_client(key), endpoint)
+
+    assert response.status_code == 403, f"{endpoint}: {response.content[:200]}"
+    assert response.json() == {
+        "detail": f'The token "dashboard" is read-only: it may not {endpoint.method.upper()}.'
+    }
+    assert not WriteRecord.objects.exists()
+    assert Robot.objects.get(name=NAME).heartbeat_timeout != 10
+    assert Mission.objects.filter(name=NAME).exists()
+
+
+@pytest.mark.parametrize("endpoint", READS, ids=str)
+def test_a_read_only_token_reads_everything(endpoint):
+    _, key = api_token_create(name="dashboard", read_only=True)
+
+    response = call(authenticated_client(key), endpoint)
+
+    assert response.status_code == 200, f"{endpoint}: {response.content[:200]}"
+
+
+@pytest.mark.parametrize("endpoint", WRITES, ids=str)
+def test_a_read_write_token_writes(endpoint, api_token):
+    response = call(authenticated_client(api_token), endpoint)
+
+    assert response.status_code == 200, f"{endpoint}: {response.content[:300]}"
+    assert WriteRecord.objects.filter(actor="token:tests").count() == 1
+
+
+@pytest.mark.parametrize("endpoint", PUBLIC, ids=str)
+@pytest.mark.parametrize(
+    "header", [None, "Bearer abcdefgh.0123456789abcdef0123456789abcdef"], ids=["none", "bad"]
+)
+def test_public_endpoints_are_open_whatever_the_request_carries(endpoint, header):
+    client = APIClient()
+    if header:
+        client.credentials(HTTP_AUTHORIZATION=header)
+
+    assert call(client, endpoint).status_code == 200
+
+
+@override_settings(API_AUTH=False)
+@pytest.mark.parametrize("endpoint", PROTECTED, ids=str)
+def test_open_mode_needs_no_credentials_and_records_writes_as_anonymous(endpoint):
+    response = call(APIClient(), endpoint)
+
+    assert response.status_code == 200, f"{endpoint}: {response.content[:300]}"
+    assert set(WriteRecord.objects.values_list("actor", flat=True)) == (
+        {"anonymous"} if endpoint.writes else set()
+    )
+
+
+@override_settings(API_AUTH=False)
+def test_open_mode_ignores_tokens_even_bad_ones():
+    client = APIClient()
+    client.credentials(HTTP_AUTHORIZATION="Bearer abcdefgh.0123456789abcdef0123456789abcdef")
+
+    assert client.get("/robot").status_code == 200
+
+
+def test_a_token_records_when_it_was_last_used():
+    token, key = api_token_create(name="seen")
+    assert token.last_used is None
+
+    authenticated_client(key).get("/robot")
+
+    token.refresh_from_db()
+    assert token.last_used is not None
