@@ -1,11 +1,14 @@
 """Who may call which endpoint, for every endpoint the URLconf has (tests/access/endpoints.py): 401 without
 usable credentials, 403 for a read-only token's writes, reads for any usable token; public endpoints open."""
 
+from datetime import timedelta
+
 import pytest
 from django.test import override_settings
+from django.utils import timezone
 from rest_framework.test import APIClient
 
-from access.models import WriteRecord
+from access.models import ApiToken, WriteRecord
 from access.permissions import NOT_AUTHENTICATED
 from access.services import api_token_create, api_token_revoke
 from missions.models import Mission
@@ -159,6 +162,16 @@ def test_open_mode_ignores_tokens_even_bad_ones():
     client.credentials(HTTP_AUTHORIZATION="Bearer abcdefgh.0123456789abcdef0123456789abcdef")
 
     assert client.get("/robot").status_code == 200
+
+
+def test_an_expired_token_answers_401():
+    token, key = api_token_create(name="temp")
+    ApiToken.objects.filter(pk=token.pk).update(expiry_date=timezone.now() - timedelta(seconds=1))
+
+    response = authenticated_client(key).get("/robot")
+
+    assert response.status_code == 401
+    assert response.json() == {"detail": "Invalid token: unknown, revoked or expired."}
 
 
 def test_a_token_records_when_it_was_last_used():
