@@ -56,10 +56,14 @@ def test_a_connection_that_failed_but_still_answers_is_kept() -> None:
     assert not connection.errors_occurred
 
 
-def wsgi_get(path: str) -> int:
+def wsgi_get(path: str, token: str) -> int:
     """GET `path` through the API's WSGI application, as its server calls it (Django's test client leaves
-    out the connection handling this is about); the response's status code."""
-    environ: dict[str, object] = {"PATH_INFO": path, "REQUEST_METHOD": "GET"}
+    out the connection handling this is about), with a bearer token; the response's status code."""
+    environ: dict[str, object] = {
+        "PATH_INFO": path,
+        "REQUEST_METHOD": "GET",
+        "HTTP_AUTHORIZATION": f"Bearer {token}",
+    }
     setup_testing_defaults(environ)
     status: list[str] = []
     body = application(environ, lambda line, headers: status.append(line))
@@ -68,8 +72,8 @@ def wsgi_get(path: str) -> int:
     return int(status[0].split()[0])
 
 
-def test_an_api_request_after_postgresql_dropped_the_connection_succeeds() -> None:
-    assert wsgi_get("/robot") == 200
+def test_an_api_request_after_postgresql_dropped_the_connection_succeeds(api_token: str) -> None:
+    assert wsgi_get("/robot", api_token) == 200
     drop_backend()
 
-    assert wsgi_get("/robot") == 200
+    assert wsgi_get("/robot", api_token) == 200
