@@ -34,7 +34,7 @@ def api_token_revoke(*, name: str) -> ApiToken:
     with transaction.atomic():
         token = ApiToken.objects.select_for_update().filter(name=name, revoked=False).first()
         if token is None:
-            raise UsageError(f'No token named "{name}" that is not revoked already.')
+            raise UsageError(f'No usable token named "{name}": it does not exist or is revoked already.')
         token.revoked = True
         token.save(update_fields=["revoked"])
     return token

@@ -76,9 +76,9 @@ def test_revoke_makes_the_token_401_and_unknown_names_are_an_error():
 
     response = authenticated_client(key).get("/robot")
     assert response.status_code == 401
-    with pytest.raises(CommandError, match='No token named "ci"'):
+    with pytest.raises(CommandError, match='No usable token named "ci"'):
         api_token("revoke", "ci")
-    with pytest.raises(CommandError, match='No token named "nobody"'):
+    with pytest.raises(CommandError, match='No usable token named "nobody"'):
         api_token("revoke", "nobody")
 
 
