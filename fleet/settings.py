@@ -169,19 +169,17 @@ SPECTACULAR_SETTINGS = {
     # The schema and Swagger UI are public, whatever credentials a request carries.
     "SERVE_AUTHENTICATION": [],
     "SERVE_PERMISSIONS": ["rest_framework.permissions.AllowAny"],
-    "POSTPROCESSING_HOOKS": [
-        "drf_spectacular.hooks.postprocess_schema_enums",
-        "access.schema.add_auth_responses",
-    ],
     "SWAGGER_UI_DIST": "SIDECAR",
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",
     "REDOC_DIST": "SIDECAR",
     "COMPONENT_SPLIT_REQUEST": True,
-    # The default hook, then what each app's serializers and filters enforce but cannot state themselves.
+    # The default hook, then what each app's serializers and filters enforce but cannot state themselves,
+    # and the 401/403 answers of the operations that need credentials.
     "POSTPROCESSING_HOOKS": [
         "drf_spectacular.hooks.postprocess_schema_enums",
         "robots.api.serializers.schema_constraints",
         "missions.api.serializers.schema_constraints",
+        "access.schema.add_auth_responses",
     ],
     "ENUM_NAME_OVERRIDES": {
         "RobotStateEnum": "robots.choices.RobotState",

@@ -13,6 +13,7 @@ import pytest
 import requests
 from django.db import connection
 
+from access.services import api_token_create
 from tests.private_redis import PrivateRedis, free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -24,6 +25,12 @@ class ApiServer:
     url: str
     process: subprocess.Popen[bytes]
     log: Path
+    token: str  # a read-write API token in the server's database
+
+    @property
+    def auth(self) -> dict[str, str]:
+        """The header that authenticates a request with `token`."""
+        return {"Authorization": f"Bearer {self.token}"}
 
     def output(self) -> str:
         return self.log.read_text(errors="replace")
@@ -32,7 +39,8 @@ class ApiServer:
 @pytest.fixture
 def api_server(transactional_db: None, tmp_path: Path) -> Iterator[ApiServer]:
     """granian with one worker process on the test database (so its writes are committed: the test is
-    transactional) and a Redis of its own for the wake-ups it sends (no worker takes them)."""
+    transactional, as is the server's token) and a Redis of its own for the wake-ups it sends (no worker
+    takes them)."""
     redis = PrivateRedis(tmp_path).start()
     port = free_port()
     log = tmp_path / "granian.log"
@@ -48,7 +56,8 @@ def api_server(transactional_db: None, tmp_path: Path) -> Iterator[ApiServer]:
         process = subprocess.Popen(
             argv, cwd=ROOT, env=env, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
         )
-    server = ApiServer(url=f"http://127.0.0.1:{port}", process=process, log=log)
+    _, token = api_token_create(name="api-server")
+    server = ApiServer(url=f"http://127.0.0.1:{port}", process=process, log=log, token=token)
     try:
         _wait_until_healthy(server)
         yield server

@@ -492,7 +492,10 @@ def test_a_name_no_object_can_have_is_not_found(api, woken, method, path, detail
 
 def test_the_server_answers_limits_with_json_400s_and_keeps_its_worker(api_server):
     post = lambda data, **headers: requests.post(  # noqa: E731
-        f"{api_server.url}/robot", data=data, headers={"Content-Type": JSON, **headers}, timeout=30
+        f"{api_server.url}/robot",
+        data=data,
+        headers={"Content-Type": JSON, **api_server.auth, **headers},
+        timeout=30,
     )
 
     too_large = post(padded({"name": "carter01"}, settings.API_MAX_BODY_BYTES + 1))
@@ -501,6 +504,7 @@ def test_the_server_answers_limits_with_json_400s_and_keeps_its_worker(api_serve
     too_many = requests.get(
         f"{api_server.url}/robot",
         params={"names": ["a"] * (settings.DATA_UPLOAD_MAX_NUMBER_FIELDS + 1)},
+        headers=api_server.auth,
         timeout=30,
     )
     accepted = post(padded({"name": "carter01"}, settings.API_MAX_BODY_BYTES))

@@ -28,14 +28,9 @@ CHECKS = (
 RUN_SECONDS = 600
 
 
-def auth_headers() -> dict[str, str]:
-    """The headers every request of the run carries: where the API's credentials go."""
-    return {}
-
-
 @pytest.mark.timeout(RUN_SECONDS + 60)
 def test_the_api_answers_every_generated_request_as_its_schema_says(api_server, tmp_path):
-    headers = [option for name, value in auth_headers().items() for option in ("-H", f"{name}: {value}")]
+    headers = [option for name, value in api_server.auth.items() for option in ("-H", f"{name}: {value}")]
 
     run = subprocess.run(
         [
