@@ -4,7 +4,8 @@ Every phase (the schema's examples, coverage of its edge values, fuzzing, statef
 read, change and delete robots and missions) with a fixed example budget, deterministic, so a run is
 reproducible and a failure replays. The checks: no 5xx; every status code, content type, header and body
 documented; every request that violates the schema refused; unsupported methods and missing required
-headers answered as documented. README.md ("Limits") tells how to run a bigger budget by hand.
+headers answered as documented; every operation that declares credentials refuses requests without them
+(ignored_auth). README.md ("Limits") tells how to run a bigger budget by hand.
 """
 
 import os
@@ -24,6 +25,7 @@ CHECKS = (
     "negative_data_rejection",
     "unsupported_method",
     "missing_required_header",
+    "ignored_auth",
 )
 RUN_SECONDS = 600
 
