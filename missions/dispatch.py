@@ -23,7 +23,6 @@ from vda5050.models import (
     ActionStatus,
     ActionType,
     Error,
-    ErrorLevel,
     InstantActionsContent,
     OrderContent,
     State,
@@ -192,14 +191,16 @@ def _send_instant_actions(
     result: StepResult, robot: RobotView, state: State | None, now: datetime, settings: DispatchSettings
 ) -> None:
     """Send new instant actions, re-send unacknowledged ones after a timeout; never on every state, and
-    not while the robot is offline or its operating mode leaves the master out of control."""
-    if not robot.online or (state is not None and not vda_state.may_receive_orders(state)):
+    not while the robot is offline or its operating mode leaves the master out of control (in 3.0's
+    INTERVENED only cancelOrder goes out)."""
+    if not robot.online:
         return
     due = [
         action
         for action in result.actions
         if action.status is None
         and (action.sent_at is None or now - action.sent_at >= settings.instant_action_resend)
+        and (state is None or vda_state.may_receive_instant_action(state, action.action_type))
     ]
     if not due:
         return
@@ -460,7 +461,8 @@ def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, order
 
 
 def _fatal_errors_for(state: State, order: OrderContent) -> list[Error]:
-    """FATAL errors about this order, or about nothing in particular (the robot cannot go on)."""
+    """Errors that end the order (FATAL, 3.0 CRITICAL) about this order, or about nothing in particular
+    (the robot cannot go on)."""
     ids = _element_ids(order)
     referencing = vda_state.errors_referencing(
         state,
@@ -472,7 +474,8 @@ def _fatal_errors_for(state: State, order: OrderContent) -> list[Error]:
     return [
         error
         for error in state.errors
-        if error.error_level == ErrorLevel.FATAL and (error in referencing or not error.error_references)
+        if error.error_level in vda_state.ORDER_ENDING_LEVELS
+        and (error in referencing or not error.error_references)
     ]
 
 

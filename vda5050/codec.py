@@ -1,4 +1,8 @@
-"""Bytes <-> models. Parsing is tolerant but raises one ``ProtocolError``; encoding is strict."""
+"""Bytes <-> models. Parsing is tolerant but raises one ``ProtocolError``; encoding is strict.
+
+Both speak the version the message's header names: a received body is read into our shape by its
+``version`` (``vda5050.versions.from_wire``), an encoded one is spelled as its header's version.
+"""
 
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ from vda5050.models import (
     VisualizationContent,
 )
 from vda5050.topics import VERSION_PATTERN, RobotAddress, Topic
+from vda5050.versions import from_wire, to_wire
 
 __all__ = [
     "ACTIONS_KEY",
@@ -66,13 +71,13 @@ MESSAGE_TYPES: dict[Topic, type[Message]] = {
     Topic.FACTSHEET: Factsheet,
 }
 # Checked in order with isinstance, so a full message (a Content subclass) is accepted too.
-CONTENT_MESSAGE_TYPES: tuple[tuple[type[Content], type[Message]], ...] = (
-    (OrderContent, Order),
-    (InstantActionsContent, InstantActions),
-    (StateContent, State),
-    (ConnectionContent, Connection),
-    (VisualizationContent, Visualization),
-    (FactsheetContent, Factsheet),
+CONTENT_MESSAGE_TYPES: tuple[tuple[type[Content], type[Message], Topic], ...] = (
+    (OrderContent, Order, Topic.ORDER),
+    (InstantActionsContent, InstantActions, Topic.INSTANT_ACTIONS),
+    (StateContent, State, Topic.STATE),
+    (ConnectionContent, Connection, Topic.CONNECTION),
+    (VisualizationContent, Visualization, Topic.VISUALIZATION),
+    (FactsheetContent, Factsheet, Topic.FACTSHEET),
 )
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -104,40 +109,41 @@ def header_for(address: RobotAddress, *, header_id: int, at: datetime) -> Header
 
 
 def parse_order(payload: bytes | str) -> Order:
-    return _validate(Order, _load(payload))
+    return _validate(Order, _load(Topic.ORDER, payload))
 
 
 def parse_instant_actions(payload: bytes | str) -> InstantActions:
-    """Accepts the 2.x ``actions`` key and the legacy 1.1 ``instantActions`` key."""
-    data = _load(payload)
+    """Accepts the ``actions`` key and the legacy 1.1 ``instantActions`` key."""
+    data = _load(Topic.INSTANT_ACTIONS, payload)
     if ACTIONS_KEY not in data and LEGACY_INSTANT_ACTIONS_KEY in data:
         data[ACTIONS_KEY] = data.pop(LEGACY_INSTANT_ACTIONS_KEY)
     return _validate(InstantActions, data)
 
 
 def parse_state(payload: bytes | str) -> State:
-    return _validate(State, _load(payload))
+    return _validate(State, _load(Topic.STATE, payload))
 
 
 def parse_connection(payload: bytes | str) -> Connection:
-    return _validate(Connection, _load(payload))
+    return _validate(Connection, _load(Topic.CONNECTION, payload))
 
 
 def parse_visualization(payload: bytes | str) -> Visualization:
-    return _validate(Visualization, _load(payload))
+    return _validate(Visualization, _load(Topic.VISUALIZATION, payload))
 
 
 def parse_factsheet(payload: bytes | str) -> Factsheet:
-    return _validate(Factsheet, _load(payload))
+    return _validate(Factsheet, _load(Topic.FACTSHEET, payload))
 
 
 def parse(topic: Topic, payload: bytes | str) -> Message:
     if topic == Topic.INSTANT_ACTIONS:
         return parse_instant_actions(payload)
-    return _validate(MESSAGE_TYPES[Topic(topic)], _load(payload))
+    return _validate(MESSAGE_TYPES[Topic(topic)], _load(Topic(topic), payload))
 
 
-def _load(payload: bytes | str) -> dict[str, Any]:
+def _load(topic: Topic, payload: bytes | str) -> dict[str, Any]:
+    """The JSON object in our shape, whichever version the header names."""
     try:
         data = orjson.loads(payload)
     except orjson.JSONDecodeError as exc:
@@ -150,7 +156,7 @@ def _load(payload: bytes | str) -> dict[str, Any]:
     brackets = (b"[", b"{") if isinstance(payload, bytes) else ("[", "{")
     if sum(map(payload.count, brackets)) > MAX_NESTING and nested_deeper(data):
         raise PayloadError(PAYLOAD_FIELD, PayloadProblem.TOO_DEEP, f"nested deeper than {MAX_NESTING} levels")
-    return data
+    return from_wire(topic, data)
 
 
 def _decode_problem(payload: bytes | str, exc: orjson.JSONDecodeError) -> PayloadProblem:
@@ -207,18 +213,19 @@ def encode(content: Content, header: Header, *, instant_actions_key: str = ACTIO
     """Stamp ``header`` onto ``content`` and return compact JSON (wire names, no nulls).
 
     The whole message is validated again, so content changed after construction cannot slip through;
+    it is spelled as ``header.version`` says (``vda5050.versions.to_wire``);
     ``instant_actions_key="instantActions"`` serves receivers that only know the 1.1 name.
     """
     if instant_actions_key not in (ACTIONS_KEY, LEGACY_INSTANT_ACTIONS_KEY):
         raise ValueError(f"instant_actions_key must be {ACTIONS_KEY!r} or {LEGACY_INSTANT_ACTIONS_KEY!r}")
     _check_header(header)
-    message_type = _message_type(content)
+    message_type, topic = _message_type(content)
     try:
         wire = {**content.model_dump(by_alias=True), **header.model_dump(by_alias=True)}
         message = message_type.model_validate(wire)
     except ValidationError as exc:
         raise _protocol_error(exc) from exc
-    body = message.model_dump(mode="json", by_alias=True, exclude_none=True)
+    body = to_wire(topic, message.model_dump(mode="json", by_alias=True, exclude_none=True), header.version)
     if message_type is InstantActions:
         body[instant_actions_key] = body.pop(ACTIONS_KEY)
     return orjson.dumps(_header_first(body))
@@ -241,10 +248,10 @@ def _is_utc_timestamp(text: str) -> bool:
     return True
 
 
-def _message_type(content: Content) -> type[Message]:
-    for content_type, message_type in CONTENT_MESSAGE_TYPES:
+def _message_type(content: Content) -> tuple[type[Message], Topic]:
+    for content_type, message_type, topic in CONTENT_MESSAGE_TYPES:
         if isinstance(content, content_type):
-            return message_type
+            return message_type, topic
     raise TypeError(f"{type(content).__name__} is not a VDA 5050 message content")
 
 

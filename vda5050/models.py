@@ -1,10 +1,11 @@
-"""Typed VDA 5050 2.0.0 / 2.1.0 messages.
+"""Typed VDA 5050 messages (2.0.0, 2.1.0, 3.0.0), in one shape.
 
 Attributes are snake_case; the wire names (camelCase, plus a few irregular ones such as
 ``allowedDeviationXY`` or the dotted ``maxArrayLens`` keys) are aliases, so camelCase exists only at
 the wire boundary. Parsing is tolerant (unknown fields are ignored, optional fields may be missing);
-a field is required here when the document or either version's schema requires it for the message
-in both versions. Fields added in 2.1.0 are optional, so one model serves both versions.
+a field is required here when the document or every version's schema requires it for the message.
+Fields added in 2.1.0 or 3.0.0 are optional, so one model serves every version. Names are 2.x's (also
+for enum values); ``vda5050.versions`` translates to and from 3.0.0's names and structure at the wire.
 
 Every message exists twice: a ``...Content`` model without header (what a sender builds) and the
 message model ``Header + Content`` (what is on the wire). ``codec.encode`` stamps the header.
@@ -42,6 +43,7 @@ class ActionStatus(StrEnum):
     INITIALIZING = "INITIALIZING"
     RUNNING = "RUNNING"
     PAUSED = "PAUSED"
+    RETRIABLE = "RETRIABLE"  # 3.0: failed, waiting for a retry or skipRetry instant action
     FINISHED = "FINISHED"
     FAILED = "FAILED"
 
@@ -49,6 +51,7 @@ class ActionStatus(StrEnum):
 class BlockingType(StrEnum):
     NONE = "NONE"
     SOFT = "SOFT"
+    SINGLE = "SINGLE"  # 3.0: driving allowed, no other action in parallel
     HARD = "HARD"
 
 
@@ -68,16 +71,29 @@ class MapStatus(StrEnum):
 
 
 class OperatingMode(StrEnum):
+    STARTUP = "STARTUP"  # 3.0
     AUTOMATIC = "AUTOMATIC"
     SEMIAUTOMATIC = "SEMIAUTOMATIC"
+    INTERVENED = "INTERVENED"  # 3.0: only cancelOrder is accepted
     MANUAL = "MANUAL"
     SERVICE = "SERVICE"
-    TEACHIN = "TEACHIN"
+    TEACHIN = "TEACHIN"  # 3.0 spells it TEACH_IN
 
 
 class ErrorLevel(StrEnum):
     WARNING = "WARNING"
+    URGENT = "URGENT"  # 3.0: still operable, needs attention soon
+    CRITICAL = "CRITICAL"  # 3.0: the current order cannot go on; the robot stays operable otherwise
     FATAL = "FATAL"
+
+
+class ErrorType(StrEnum):
+    """Predefined error types we act on, in both spellings (2.x camelCase, 3.0 UPPER_SNAKE)."""
+
+    VALIDATION_ERROR = "validationError"
+    NO_ORDER_TO_CANCEL = "noOrderToCancel"
+    VALIDATION_FAILURE = "VALIDATION_FAILURE"  # 3.0's validationError
+    NO_ORDER_TO_CANCEL_3 = "NO_ORDER_TO_CANCEL"
 
 
 class InfoLevel(StrEnum):
@@ -95,10 +111,13 @@ class EStop(StrEnum):
 class ConnectionState(StrEnum):
     ONLINE = "ONLINE"
     OFFLINE = "OFFLINE"
-    CONNECTIONBROKEN = "CONNECTIONBROKEN"
+    HIBERNATING = "HIBERNATING"  # 3.0: connected, asleep until stopHibernation
+    CONNECTIONBROKEN = "CONNECTIONBROKEN"  # 3.0 spells it CONNECTION_BROKEN
 
 
 class AgvKinematic(StrEnum):
+    """2.x values; 3.0 spells them DIFFERENTIAL, OMNIDIRECTIONAL, THREE_WHEEL and allows others."""
+
     DIFF = "DIFF"
     OMNI = "OMNI"
     THREEWHEEL = "THREEWHEEL"
@@ -135,6 +154,7 @@ class ActionScope(StrEnum):
     INSTANT = "INSTANT"
     NODE = "NODE"
     EDGE = "EDGE"
+    ZONE = "ZONE"  # 3.0
 
 
 class ValueDataType(StrEnum):
@@ -232,6 +252,7 @@ class Action(VdaModel):
     action_description: str | None = None
     blocking_type: BlockingType
     action_parameters: list[ActionParameter] | None = None
+    retriable: bool | None = None  # 3.0
 
 
 class NodePosition(VdaModel):
@@ -271,6 +292,8 @@ class Corridor(VdaModel):
     left_width: float
     right_width: float
     corridor_ref_point: CorridorRefPoint | None = None
+    release_required: bool | None = None  # 3.0: the robot asks fleet control to release the corridor
+    release_loss_behavior: str | None = None  # 3.0: STOP or RETURN
 
 
 class Edge(VdaModel):
@@ -297,6 +320,7 @@ class Edge(VdaModel):
 class OrderContent(VdaModel):
     order_id: str
     order_update_id: UInt
+    order_description: str | None = None  # 3.0
     zone_set_id: str | None = None
     nodes: list[Node]
     edges: list[Edge]
@@ -393,11 +417,34 @@ class ActionState(VdaModel):
 
 
 class BatteryState(VdaModel):
+    """3.0's ``powerSupply``."""
+
     battery_charge: float
     battery_voltage: float | None = None
+    battery_current: float | None = None  # 3.0
     battery_health: float | None = None
     charging: bool
     reach: float | None = None
+
+
+class ZoneSetState(VdaModel):
+    """3.0: a zone set the robot holds."""
+
+    map_id: str
+    zone_set_id: str
+    zone_set_status: MapStatus
+
+
+class Request(VdaModel):
+    """3.0: a zone or edge request the robot waits on; fleet control answers on ``responses``."""
+
+    request_id: str
+    request_type: str
+    request_status: str
+    zone_id: str | None = None
+    zone_set_id: str | None = None
+    edge_id: str | None = None
+    sequence_id: int | None = None
 
 
 class ErrorReference(VdaModel):
@@ -448,6 +495,12 @@ class StateContent(VdaModel):
     velocity: Velocity | None = None
     loads: list[Load] | None = None
     action_states: list[ActionState]
+    # 3.0 reports instant actions and zone actions apart from the order's actions (2.x: all in actionStates).
+    instant_action_states: list[ActionState] | None = None
+    zone_action_states: list[ActionState] | None = None
+    zone_sets: list[ZoneSetState] | None = None
+    zone_requests: list[Request] | None = None
+    edge_requests: list[Request] | None = None
     battery_state: BatteryState
     errors: list[Error]
     information: list[Information] | None = None
@@ -475,6 +528,7 @@ class Connection(MessageHeader, ConnectionContent):
 class VisualizationContent(VdaModel):
     agv_position: AgvPosition | None = None
     velocity: Velocity | None = None
+    reference_state_header_id: UInt | None = None  # 3.0
 
 
 class Visualization(VisualizationContent):
@@ -493,12 +547,12 @@ class Visualization(VisualizationContent):
 class TypeSpecification(VdaModel):
     series_name: str
     series_description: str | None = None
-    agv_kinematic: AgvKinematic
+    agv_kinematic: AgvKinematic | str  # 3.0 allows kinematics beyond the enum
     # Vendors extend the class list (Isaac: MANIPULATOR, HUMANOID); an unknown class is kept as text.
     agv_class: AgvClass | str
     max_load_mass: float
-    localization_types: list[LocalizationType]
-    navigation_types: list[NavigationType]
+    localization_types: list[LocalizationType | str]  # 3.0: free text
+    navigation_types: list[NavigationType | str]
 
 
 class PhysicalParameters(VdaModel):
@@ -578,6 +632,8 @@ class AgvAction(VdaModel):
     action_parameters: list[FactsheetActionParameter] | None = None
     result_description: str | None = None
     blocking_types: list[BlockingType] | None = None
+    pause_allowed: bool | None = None  # 3.0 (required there)
+    cancel_allowed: bool | None = None  # 3.0 (required there)
 
 
 class ProtocolFeatures(VdaModel):
@@ -592,7 +648,7 @@ class WheelPosition(VdaModel):
 
 
 class WheelDefinition(VdaModel):
-    type: WheelType
+    type: WheelType | str  # 3.0: free text
     is_active_driven: bool
     is_active_steered: bool
     position: WheelPosition

@@ -3,6 +3,9 @@
 Follows the document's rules for a master: progress comes from ``lastNodeId``/``lastNodeSequenceId``
 and removed node states (never from the position), actions are found by ``actionId`` (never by list
 position), FATAL errors make a robot unavailable while WARNINGs do not, ``information`` drives no logic.
+3.0 additions: instant and zone actions are reported apart from the order's (found by ``actionId`` all
+the same), a CRITICAL error ends the current order but not the robot's availability, and a robot that an
+operator INTERVENED on takes only ``cancelOrder``.
 """
 
 from __future__ import annotations
@@ -10,12 +13,18 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass
 
-from vda5050.models import ActionStatus, Error, ErrorLevel, OperatingMode, State
+from vda5050.models import ActionState, ActionStatus, ActionType, Error, ErrorLevel, OperatingMode, State
 from vda5050.orders import Pose
 
 FINAL_ACTION_STATUSES = frozenset({ActionStatus.FINISHED, ActionStatus.FAILED})
 # The master is not in control in these modes and must send neither orders nor instant actions.
-MODES_WITHOUT_MASTER = frozenset({OperatingMode.MANUAL, OperatingMode.SERVICE, OperatingMode.TEACHIN})
+MODES_WITHOUT_MASTER = frozenset(
+    {OperatingMode.STARTUP, OperatingMode.MANUAL, OperatingMode.SERVICE, OperatingMode.TEACHIN}
+)
+# 3.0: someone intervened on the robot; fleet control may only cancel its order.
+MODE_CANCEL_ONLY = OperatingMode.INTERVENED
+# Errors after which the robot cannot go on with its current order (3.0 CRITICAL: it can take new ones).
+ORDER_ENDING_LEVELS = frozenset({ErrorLevel.CRITICAL, ErrorLevel.FATAL})
 
 # Reference keys are compared case-insensitively without underscores: vendors send "orderId",
 # "order_id" or "OrderID" alike.
@@ -74,9 +83,14 @@ def last_node_reached(state: State, order_id: str, sequence_id: int) -> bool:
 
 
 def action_status(state: State, action_id: str) -> ActionStatus | None:
-    """Status of one action by id; None while the robot does not report it."""
-    statuses = [a.action_status for a in state.action_states if a.action_id == action_id]
+    """Status of one action by id, wherever the robot reports it; None while it does not."""
+    statuses = [a.action_status for a in all_action_states(state) if a.action_id == action_id]
     return statuses[-1] if statuses else None
+
+
+def all_action_states(state: State) -> list[ActionState]:
+    """Order, instant and zone actions: one list in 2.x, three in 3.0."""
+    return [*state.action_states, *(state.instant_action_states or ()), *(state.zone_action_states or ())]
 
 
 def errors_referencing(
@@ -106,9 +120,14 @@ def fatal_errors(state: State) -> list[Error]:
     return [error for error in state.errors if error.error_level == ErrorLevel.FATAL]
 
 
+def order_ending_errors(state: State) -> list[Error]:
+    """Errors after which the robot does not go on with its current order (FATAL, 3.0 CRITICAL)."""
+    return [error for error in state.errors if error.error_level in ORDER_ENDING_LEVELS]
+
+
 def warnings(state: State) -> list[Error]:
-    """Errors the robot can still work with."""
-    return [error for error in state.errors if error.error_level == ErrorLevel.WARNING]
+    """Errors the robot can still work with (3.0 URGENT too)."""
+    return [error for error in state.errors if error.error_level in (ErrorLevel.WARNING, ErrorLevel.URGENT)]
 
 
 def is_idle(state: State) -> bool:
@@ -121,6 +140,12 @@ def is_idle(state: State) -> bool:
 
 
 def may_receive_orders(state: State) -> bool:
+    return state.operating_mode not in MODES_WITHOUT_MASTER and state.operating_mode != MODE_CANCEL_ONLY
+
+
+def may_receive_instant_action(state: State, action_type: str) -> bool:
+    if state.operating_mode == MODE_CANCEL_ONLY:
+        return action_type == ActionType.CANCEL_ORDER
     return state.operating_mode not in MODES_WITHOUT_MASTER
 
 

@@ -1,4 +1,9 @@
-"""Messages with every field of the document set, for round trips and schema checks."""
+"""Messages with every field of the document set, for round trips and schema checks.
+
+Each builder takes the protocol version: a 3.0.0 message carries what 3.0.0 has (instant action states,
+zone sets and requests, ...) and leaves out what it dropped (``zoneSetId``, ``mapDescription`` of nodes,
+``localizationParameters``); 3.0.0 instant actions are always NONE-blocking.
+"""
 
 from __future__ import annotations
 
@@ -61,6 +66,7 @@ from vda5050.models import (
     PolygonPoint,
     ProtocolFeatures,
     ProtocolLimits,
+    Request,
     SafetyState,
     StateContent,
     Timing,
@@ -74,8 +80,10 @@ from vda5050.models import (
     WheelDefinition,
     WheelPosition,
     WheelType,
+    ZoneSetState,
 )
 from vda5050.topics import RobotAddress
+from vda5050.versions import MAJOR_3, major_of
 
 SAMPLE_TIME = datetime(2026, 11, 22, 10, 0, 0, 123456, tzinfo=UTC)
 
@@ -86,12 +94,18 @@ def sample_header(version: str, header_id: int = 7) -> Header:
     )
 
 
-def _action(action_id: str) -> Action:
+def _is_3(version: str) -> bool:
+    return major_of(version) >= MAJOR_3
+
+
+def _action(
+    action_id: str, blocking_type: BlockingType = BlockingType.HARD, version: str = "2.0.0"
+) -> Action:
     return Action(
         action_type="pick",
         action_id=action_id,
         action_description="pick a pallet",
-        blocking_type=BlockingType.HARD,
+        blocking_type=blocking_type,
         action_parameters=[
             ActionParameter(key="height", value=0.25),
             ActionParameter(key="loadType", value="EPAL"),
@@ -100,10 +114,11 @@ def _action(action_id: str) -> Action:
             ActionParameter(key="stations", value=["a", "b"]),
             ActionParameter(key="target", value={"x": 1.5, "label": "dock"}),
         ],
+        retriable=True if _is_3(version) else None,
     )
 
 
-def _node_position(x: float) -> NodePosition:
+def _node_position(x: float, version: str = "2.0.0") -> NodePosition:
     return NodePosition(
         x=x,
         y=2.0,
@@ -111,7 +126,7 @@ def _node_position(x: float) -> NodePosition:
         allowed_deviation_xy=0.1,
         allowed_deviation_theta=0.2,
         map_id="floor1",
-        map_description="ground floor",
+        map_description=None if _is_3(version) else "ground floor",
     )
 
 
@@ -123,21 +138,28 @@ def _trajectory() -> Trajectory:
     )
 
 
-def full_order() -> OrderContent:
+def full_order(version: str = "2.0.0") -> OrderContent:
     return OrderContent(
         order_id="order-1",
         order_update_id=2,
-        zone_set_id="zones-1",
+        order_description="to the dock" if _is_3(version) else None,
+        zone_set_id=None if _is_3(version) else "zones-1",
         nodes=[
             Node(
                 node_id="n0",
                 sequence_id=0,
                 node_description="start",
                 released=True,
-                node_position=_node_position(0.0),
-                actions=[_action("a0")],
+                node_position=_node_position(0.0, version),
+                actions=[_action("a0", version=version)],
             ),
-            Node(node_id="n1", sequence_id=2, released=False, node_position=_node_position(3.0), actions=[]),
+            Node(
+                node_id="n1",
+                sequence_id=2,
+                released=False,
+                node_position=_node_position(3.0, version),
+                actions=[],
+            ),
         ],
         edges=[
             Edge(
@@ -158,37 +180,44 @@ def full_order() -> OrderContent:
                 length=3.0,
                 trajectory=_trajectory(),
                 corridor=Corridor(
-                    left_width=0.5, right_width=0.4, corridor_ref_point=CorridorRefPoint.CONTOUR
+                    left_width=0.5,
+                    right_width=0.4,
+                    corridor_ref_point=CorridorRefPoint.CONTOUR,
+                    release_required=True if _is_3(version) else None,
+                    release_loss_behavior="STOP" if _is_3(version) else None,
                 ),
-                actions=[_action("a1")],
+                actions=[_action("a1", version=version)],
             )
         ],
     )
 
 
-def full_instant_actions() -> InstantActionsContent:
-    return InstantActionsContent(actions=[_action("ia0")])
+def full_instant_actions(version: str = "2.0.0") -> InstantActionsContent:
+    return InstantActionsContent(
+        actions=[_action("ia0", BlockingType.NONE if _is_3(version) else BlockingType.HARD)]
+    )
 
 
-def _agv_position() -> AgvPosition:
+def _agv_position(version: str = "2.0.0") -> AgvPosition:
     return AgvPosition(
         x=1.0,
         y=2.0,
         theta=-0.5,
         map_id="floor1",
-        map_description="ground floor",
+        map_description=None if _is_3(version) else "ground floor",
         position_initialized=True,
         localization_score=0.9,
         deviation_range=0.05,
     )
 
 
-def full_state() -> StateContent:
+def full_state(version: str = "2.0.0") -> StateContent:
+    is_3 = _is_3(version)
     return StateContent(
         maps=[Map(map_id="floor1", map_version="3", map_description="ground", map_status=MapStatus.ENABLED)],
         order_id="order-1",
         order_update_id=2,
-        zone_set_id="zones-1",
+        zone_set_id=None if is_3 else "zones-1",
         last_node_id="n0",
         last_node_sequence_id=0,
         driving=True,
@@ -202,7 +231,7 @@ def full_state() -> StateContent:
                 sequence_id=2,
                 node_description="end",
                 released=True,
-                node_position=_node_position(3.0),
+                node_position=_node_position(3.0, version),
             )
         ],
         edge_states=[
@@ -210,7 +239,7 @@ def full_state() -> StateContent:
                 edge_id="e1", sequence_id=1, edge_description="aisle", released=True, trajectory=_trajectory()
             )
         ],
-        agv_position=_agv_position(),
+        agv_position=_agv_position(version),
         velocity=Velocity(vx=0.5, vy=0.0, omega=0.1),
         loads=[
             Load(
@@ -232,8 +261,60 @@ def full_state() -> StateContent:
             ),
             ActionState(action_id="a1", action_status=ActionStatus.PAUSED),
         ],
+        instant_action_states=[
+            ActionState(
+                action_id="ia0",
+                action_type="startPause",
+                action_description="pause",
+                action_status=ActionStatus.RETRIABLE,
+                result_description="brakes",
+            )
+        ]
+        if is_3
+        else None,
+        zone_action_states=[
+            ActionState(
+                action_id="za0",
+                action_type="startCharging",
+                action_description="charge in zone",
+                action_status=ActionStatus.RUNNING,
+                result_description="charging",
+            )
+        ]
+        if is_3
+        else None,
+        zone_sets=[ZoneSetState(map_id="floor1", zone_set_id="zs1", zone_set_status=MapStatus.ENABLED)]
+        if is_3
+        else None,
+        zone_requests=[
+            Request(
+                request_id="r1",
+                request_type="ACCESS",
+                request_status="REQUESTED",
+                zone_id="z1",
+                zone_set_id="zs1",
+            )
+        ]
+        if is_3
+        else None,
+        edge_requests=[
+            Request(
+                request_id="r2",
+                request_type="CORRIDOR",
+                request_status="GRANTED",
+                edge_id="e1",
+                sequence_id=1,
+            )
+        ]
+        if is_3
+        else None,
         battery_state=BatteryState(
-            battery_charge=80.0, battery_voltage=48.1, battery_health=97.0, charging=False, reach=1200.0
+            battery_charge=80.0,
+            battery_voltage=48.1,
+            battery_current=-2.5 if is_3 else None,
+            battery_health=97.0,
+            charging=False,
+            reach=1200.0,
         ),
         errors=[
             Error(
@@ -241,7 +322,7 @@ def full_state() -> StateContent:
                 error_references=[ErrorReference(reference_key="orderId", reference_value="order-1")],
                 error_description="lift too high",
                 error_hint="lower the lift",
-                error_level=ErrorLevel.WARNING,
+                error_level=ErrorLevel.CRITICAL if is_3 else ErrorLevel.WARNING,
             )
         ],
         information=[
@@ -256,15 +337,20 @@ def full_state() -> StateContent:
     )
 
 
-def full_connection() -> ConnectionContent:
+def full_connection(version: str = "2.0.0") -> ConnectionContent:
     return ConnectionContent(connection_state=ConnectionState.CONNECTIONBROKEN)
 
 
-def full_visualization() -> VisualizationContent:
-    return VisualizationContent(agv_position=_agv_position(), velocity=Velocity(vx=0.5, vy=0.1, omega=0.0))
+def full_visualization(version: str = "2.0.0") -> VisualizationContent:
+    return VisualizationContent(
+        agv_position=_agv_position(version),
+        velocity=Velocity(vx=0.5, vy=0.1, omega=0.0),
+        reference_state_header_id=6 if _is_3(version) else None,
+    )
 
 
-def full_factsheet() -> FactsheetContent:
+def full_factsheet(version: str = "2.0.0") -> FactsheetContent:
+    is_3 = _is_3(version)
     return FactsheetContent(
         type_specification=TypeSpecification(
             series_name="carter",
@@ -294,7 +380,7 @@ def full_factsheet() -> FactsheetContent:
                 topic_elem_len=32,
                 id_len=64,
                 id_numerical_only=False,
-                enum_len=32,
+                enum_len=None if is_3 else 32,
                 load_id_len=32,
             ),
             max_array_lens=MaxArrayLens(
@@ -345,6 +431,8 @@ def full_factsheet() -> FactsheetContent:
                     ],
                     result_description="load id",
                     blocking_types=[BlockingType.SOFT, BlockingType.HARD],
+                    pause_allowed=True if is_3 else None,
+                    cancel_allowed=False if is_3 else None,
                 )
             ],
         ),
@@ -401,7 +489,7 @@ def full_factsheet() -> FactsheetContent:
                 )
             ],
         ),
-        localization_parameters={},
+        localization_parameters=None if is_3 else {},
         vehicle_config=VehicleConfig(
             versions=[VersionInfo(key="softwareVersion", value="v1.03.2")],
             network=Network(
@@ -415,7 +503,7 @@ def full_factsheet() -> FactsheetContent:
     )
 
 
-# topic name -> builder of the full content of that message
+# topic name -> builder of the full content of that message in a version
 FULL_CONTENTS = {
     "order": full_order,
     "instantActions": full_instant_actions,

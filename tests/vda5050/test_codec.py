@@ -50,6 +50,32 @@ UNDECLARED_KEYS: dict[tuple[str, str], set[str]] = {
         "physicalParameters.angularSpeedMax",
     },
     ("2.1.0", "visualization"): {"agvPosition.mapDescription"},
+    ("3.0.0", "state"): {
+        "nodeStates[].nodePosition.allowedDeviationXY",
+        "nodeStates[].nodePosition.allowedDeviationTheta",
+    },
+    # The released 3.0.0 schema lacks it; the document and main's schema have it (required).
+    ("3.0.0", "visualization"): {"referenceStateHeaderId"},
+}
+# 3.0.0 properties our models leave out: nothing we do reads them (paths for freely navigating robots,
+# error text translations, zone and battery-charging capabilities, limits of lists we never send). They
+# are skipped when read, like any unknown field.
+NOT_MODELLED = {
+    ("3.0.0", "state"): {
+        "plannedPath",
+        "intermediatePath",
+        "errors[].errorDescriptionTranslations",
+        "errors[].errorHintTranslations",
+        "zoneRequests[].trajectory",
+    },
+    ("3.0.0", "visualization"): {"plannedPath", "intermediatePath"},
+    ("3.0.0", "factsheet"): {
+        "typeSpecification.supportedZones",
+        "mobileRobotConfiguration.batteryCharging",
+        "protocolLimits.maximumArrayLengths.state.instantActionStates",
+        "protocolLimits.maximumArrayLengths.state.zoneActionStates",
+        "protocolLimits.maximumArrayLengths.zoneSet.zones",
+    },
 }
 FULL_CASES = [(topic, version) for topic in FULL_CONTENTS for version in VERSIONS]
 
@@ -83,7 +109,7 @@ def key_report(root: dict[str, Any], schema: dict[str, Any], value: Any, path: s
 
 @pytest.mark.parametrize(("topic", "version"), FULL_CASES)
 def test_round_trip_keeps_every_field_and_bytes(topic: str, version: str) -> None:
-    content = FULL_CONTENTS[topic]()
+    content = FULL_CONTENTS[topic](version)
     header = sample_header(version)
     payload = encode(content, header)
 
@@ -96,18 +122,19 @@ def test_round_trip_keeps_every_field_and_bytes(topic: str, version: str) -> Non
 
 @pytest.mark.parametrize(("topic", "version"), FULL_CASES)
 def test_full_messages_validate_against_the_official_schema(topic: str, version: str) -> None:
-    validate_message(topic, version, orjson.loads(encode(FULL_CONTENTS[topic](), sample_header(version))))
+    payload = encode(FULL_CONTENTS[topic](version), sample_header(version))
+    validate_message(topic, version, orjson.loads(payload))
 
 
 @pytest.mark.parametrize(("topic", "version"), FULL_CASES)
 def test_wire_names_match_the_schema_and_cover_every_property(topic: str, version: str) -> None:
     schema = load_schema(topic, version)
-    message = orjson.loads(encode(FULL_CONTENTS[topic](), sample_header(version)))
+    message = orjson.loads(encode(FULL_CONTENTS[topic](version), sample_header(version)))
 
     undeclared, missing = key_report(schema, schema, message)
 
     assert undeclared == UNDECLARED_KEYS.get((version, topic), set())
-    assert missing == set()
+    assert missing == NOT_MODELLED.get((version, topic), set())
 
 
 def test_parse_reads_camel_case_and_irregular_wire_names() -> None:
