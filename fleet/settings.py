@@ -184,6 +184,7 @@ SPECTACULAR_SETTINGS = {
     "ENUM_NAME_OVERRIDES": {
         "RobotStateEnum": "robots.choices.RobotState",
         "MissionStateEnum": "missions.choices.MissionState",
+        "SettingSourceEnum": "robots.choices.SettingSource",
     },
 }
 

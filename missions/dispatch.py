@@ -17,8 +17,9 @@ from typing import Any
 
 from missions import engine
 from missions.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
-from vda5050 import orders
+from vda5050 import compat, orders
 from vda5050 import state as vda_state
+from vda5050.codec import ACTIONS_KEY, LEGACY_INSTANT_ACTIONS_KEY
 from vda5050.models import (
     ActionStatus,
     ActionType,
@@ -57,6 +58,8 @@ class RobotView:
     online: bool
     battery_critical_level: float
     switch_teleop: bool = False  # teleop asked for through the API (not by a pause_order action)
+    instant_actions_key: str = ACTIONS_KEY
+    instant_actions_key_by_operator: bool = False  # then no compatibility rule changes it
 
 
 @dataclass
@@ -124,6 +127,8 @@ class StepResult:
     notify: str | None = None  # name of a notify node to run now
     switch_teleop: bool = False  # the robot's API teleop switch, which a mission's end leaves alone
     rejected: bool = False  # the robot rejected an order (counted by the caller)
+    instant_actions_key: str | None = None  # the key the robot turned out to read, if it changed
+    rules_applied: list[tuple[compat.Rule, str]] = field(default_factory=list)  # (rule, why), to record
 
 
 def step(
@@ -146,6 +151,7 @@ def step(
         switch_teleop=robot.switch_teleop,
     )
     _track_instant_actions(result, robot, state, now, settings)
+    _switch_to_legacy_key(result, robot, state)
     _track_charging(result, state)
     if mission is not None:
         mission = replace(mission)
@@ -168,6 +174,11 @@ def _track_instant_actions(
         return
     for action in result.actions:
         status = vda_state.action_status(state, action.action_id)
+        if status is None and action.action_type == ActionType.CANCEL_ORDER and action.sent_at is not None:
+            refusal = compat.cancel_refusal(state, action.action_id)
+            if refusal is not None:
+                status = ActionStatus.FAILED
+                result.rules_applied.append((compat.Rule.CANCEL_REFUSED_BY_ERROR_ONLY, _describe([refusal])))
         if status is None or status.value == action.status:
             continue
         action.status = status.value
@@ -175,6 +186,21 @@ def _track_instant_actions(
             result.robot_state = RobotState.TELEOP
         elif status == ActionStatus.FINISHED and action.action_type == ActionType.STOP_TELEOP:
             result.robot_state = RobotState.ON_TASK if _has_running_mission(result) else RobotState.IDLE
+
+
+def _switch_to_legacy_key(result: StepResult, robot: RobotView, state: State | None) -> None:
+    """Compatibility rule LEGACY_INSTANT_ACTIONS_KEY: a robot that rejected our `actions` gets its
+    unacknowledged instant actions again at once, under the 1.1 key, unless an operator chose the key."""
+    if state is None or robot.instant_actions_key != ACTIONS_KEY or robot.instant_actions_key_by_operator:
+        return
+    waiting = [a for a in result.actions if a.status is None and a.sent_at is not None]
+    rejection = compat.actions_key_rejection(state) if waiting else None
+    if rejection is None:
+        return
+    result.instant_actions_key = LEGACY_INSTANT_ACTIONS_KEY
+    result.rules_applied.append((compat.Rule.LEGACY_INSTANT_ACTIONS_KEY, _describe([rejection])))
+    for action in waiting:
+        action.sent_at = None  # due now (`_send_instant_actions`)
 
 
 def _track_charging(result: StepResult, state: State | None) -> None:

@@ -32,6 +32,7 @@ from missions.rows import (
     mission_db_values,
     mission_row_delete,
 )
+from robots.choices import InstantActionsKey, SettingSource
 from robots.models import InstantAction, Robot
 from robots.selectors import robot_unfinished_instant_actions
 from robots.services import robot_rows_delete
@@ -49,6 +50,7 @@ logger = logging.getLogger(__name__)
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
+        r.instant_actions_key_source = '{SettingSource.OPERATOR}',
         r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
         EXISTS (
@@ -254,6 +256,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         critical_level,
         switch_teleop,
         actions_key,
+        actions_key_by_operator,
         next_order_header_id,
         next_instant_actions_header_id,
         outbox,
@@ -276,6 +279,8 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         online=online,
         battery_critical_level=critical_level,
         switch_teleop=switch_teleop,
+        instant_actions_key=actions_key,
+        instant_actions_key_by_operator=actions_key_by_operator,
     )
     ended_a_mission = False
     while True:
@@ -291,6 +296,10 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         )
         _store_actions(name, actions, result.actions)
         actions = [a for a in result.actions if a.status not in dispatch.FINAL]
+        _store_compatibility(name, result, now)
+        if result.instant_actions_key is not None:
+            outcome.instant_actions_key = result.instant_actions_key
+            view = replace(view, instant_actions_key=result.instant_actions_key)
         outcome.messages.extend(result.messages)
         outcome.rejections += int(result.rejected)
         view = replace(view, state=result.robot_state)
@@ -412,6 +421,35 @@ def _store_mission(before: dispatch.MissionRecord, after: dispatch.MissionRecord
 def _mission_update_sql(columns: tuple[str, ...]) -> str:
     assignments = ", ".join(f"{column} = %s" for column in mission_columns(columns))
     return f"UPDATE {Mission._meta.db_table} SET {assignments} WHERE name = %s"
+
+
+COMPATIBILITY_SQL = f"""
+    UPDATE {Robot._meta.db_table}
+    SET compatibility_rules = compatibility_rules || COALESCE((
+            SELECT jsonb_agg(new.rule) FROM jsonb_array_elements(%s::jsonb) AS new(rule)
+            WHERE NOT compatibility_rules @> jsonb_build_array(jsonb_build_object('rule', new.rule->'rule'))
+        ), '[]'::jsonb),
+        instant_actions_key = COALESCE(%s::varchar, instant_actions_key),
+        instant_actions_key_source = CASE WHEN %s::varchar IS NULL THEN instant_actions_key_source
+            ELSE '{SettingSource.LEARNED}' END,
+        updated_at = %s
+    WHERE name = %s
+"""
+
+
+def _store_compatibility(name: str, result: dispatch.StepResult, now: datetime) -> None:
+    """Record the compatibility rules the step applied (each rule once per robot: when it first applied)
+    and the instant actions key it learned."""
+    if not result.rules_applied:
+        return
+    key = result.instant_actions_key
+    assert key is None or key in InstantActionsKey.values
+    at = now.isoformat()
+    rules = [{"rule": rule.value, "applied_at": at, "reason": why} for rule, why in result.rules_applied]
+    for rule, why in result.rules_applied:
+        logger.warning("robot %s: compatibility rule %s applied: %s", name, rule.value, why)
+    with connection.cursor() as cursor:
+        cursor.execute(COMPATIBILITY_SQL, [jsonb(rules), key, key, timezone.now(), name])
 
 
 def _action_record(action: InstantAction) -> dispatch.ActionRecord:

@@ -14,7 +14,7 @@ from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
 from access.authentication import request_actor
 from fleet.api import UsageError, object_name_validator
 from robots.api.serializers import RobotSpecSerializer, RobotVda5050Serializer
-from robots.choices import TeleopAction
+from robots.choices import SettingSource, TeleopAction
 from robots.models import Robot
 from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
 
@@ -40,8 +40,9 @@ IDENTITY_FIELDS = (
     "interface_name",
     "manufacturer",
     "serial_number",
-    "protocol_version",
-    "instant_actions_key",
+    ("protocol_version", "protocol_version_source"),
+    ("instant_actions_key", "instant_actions_key_source"),
+    "compatibility_rules",
 )
 SPEC_FIELDS = (*EDITABLE_SPEC_FIELDS, "switch_teleop")
 
@@ -111,6 +112,18 @@ def serializer_errors(errors: Any, path: tuple[str, ...] = ()) -> Iterator[tuple
         yield path, str(errors)
 
 
+def vda5050_spec(robot: Robot) -> dict[str, Any]:
+    """The robot's VDA 5050 spec as the API takes it: its identity and the protocol settings an operator
+    chose (a learned or default one stays what it is, see `robots.services`)."""
+    shown = RobotVda5050Serializer(robot).data
+    spec = {key: shown[key] for key in ("interface_name", "manufacturer", "serial_number")}
+    if robot.protocol_version_source == SettingSource.OPERATOR:
+        spec["version"] = robot.protocol_version
+    if robot.instant_actions_key_source == SettingSource.OPERATOR:
+        spec["instant_actions_key"] = robot.instant_actions_key
+    return spec
+
+
 class RobotAdminForm(forms.ModelForm):
     """The spec part of a robot, checked by the API's own spec serializer so that the admin accepts exactly
     what the API accepts; `spec` then holds it in the services' shape."""
@@ -132,7 +145,7 @@ class RobotAdminForm(forms.ModelForm):
             return cleaned_data
         spec = robot_spec({**model_to_dict(self.instance, fields=SPEC_FIELDS), **cleaned_data})
         if not self.instance._state.adding:
-            spec["vda5050"] = RobotVda5050Serializer(self.instance).data
+            spec["vda5050"] = vda5050_spec(self.instance)
         serializer = RobotSpecSerializer(data=spec)
         if serializer.is_valid():
             self.spec = serializer.validated_data
@@ -152,11 +165,12 @@ class RobotAdmin(admin.ModelAdmin):
         "battery_level",
         "pose",
         "agv_class",
+        "protocol_version",
         "lifecycle",
         "last_state_at",
         "updated_at",
     )
-    list_filter = ("state", "online", "lifecycle", "agv_class")
+    list_filter = ("state", "online", "lifecycle", "agv_class", "protocol_version")
     search_fields = ("name",)
     ordering = ("name",)
     list_per_page = 50

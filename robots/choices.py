@@ -31,6 +31,7 @@ class AgvClass(models.TextChoices):
 class ProtocolVersion(models.TextChoices):
     V2_0_0 = "2.0.0"
     V2_1_0 = "2.1.0"
+    V3_0_0 = "3.0.0"
 
 
 class InstantActionsKey(models.TextChoices):
@@ -38,6 +39,16 @@ class InstantActionsKey(models.TextChoices):
 
     ACTIONS = "actions"
     INSTANT_ACTIONS = "instantActions"
+
+
+class SettingSource(models.TextChoices):
+    """Where a robot's protocol setting (version, instant actions key) comes from. An operator's choice is
+    final; a default gives way to what the robot shows it speaks (LEARNED: its factsheet or topic for the
+    version, a compatibility rule for the key)."""
+
+    OPERATOR = "OPERATOR"
+    DEFAULT = "DEFAULT"
+    LEARNED = "LEARNED"
 
 
 # States from which teleop may be switched on or off.

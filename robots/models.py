@@ -1,7 +1,7 @@
 from django.conf import settings
 from django.db import models
 
-from robots.choices import AgvClass, InstantActionsKey, Lifecycle, ProtocolVersion, RobotState
+from robots.choices import AgvClass, InstantActionsKey, Lifecycle, ProtocolVersion, RobotState, SettingSource
 
 
 def default_interface_name() -> str:
@@ -37,8 +37,19 @@ class Robot(models.Model):
     protocol_version = models.CharField(
         max_length=10, choices=ProtocolVersion.choices, default=default_protocol_version
     )
+    protocol_version_source = models.CharField(
+        max_length=10, choices=SettingSource.choices, default=SettingSource.DEFAULT
+    )
     instant_actions_key = models.CharField(
         max_length=20, choices=InstantActionsKey.choices, default=InstantActionsKey.ACTIONS
+    )
+    instant_actions_key_source = models.CharField(
+        max_length=10, choices=SettingSource.choices, default=SettingSource.DEFAULT
+    )
+    compatibility_rules = models.JSONField(
+        default=list,
+        blank=True,
+        help_text="Vehicle compatibility rules applied to the robot: rule, applied_at, reason (README).",
     )
     # The headerId of the next message on each topic the server sends the robot. The step that sends
     # messages raises them in its own transaction, so they survive a Redis restart and follow the order in

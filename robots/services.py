@@ -15,7 +15,7 @@ from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
 from fleet.wake import wake_robot
 from missions.choices import MissionState
 from missions.models import Mission
-from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, TeleopAction
+from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, SettingSource, TeleopAction
 from robots.models import InstantAction, Robot
 from vda5050.models import ActionType
 from vda5050.orders import new_action_id
@@ -35,7 +35,7 @@ def robot_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapp
     reference's ObjectError; a VDA 5050 identity another robot already uses raises a UsageError.
     """
     robot_name = object_name_for_create(name=name, prefix=prefix, what="Robot name")
-    fields = _robot_spec_fields(spec, robot_name=robot_name)
+    fields = _robot_spec_fields(spec, robot_name=robot_name, current=None)
     robot = Robot(name=robot_name, **fields)
     try:
         with transaction.atomic():
@@ -53,10 +53,10 @@ def robot_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapp
 
 def robot_update_spec(*, actor: str, robot: Robot, spec: Mapping[str, Any]) -> Robot:
     """Replace the robot's whole spec (PUT): fields the spec omits go back to their defaults."""
-    fields = _robot_spec_fields(spec, robot_name=robot.name)
     try:
         with transaction.atomic():
             locked = lock_row(robot)
+            fields = _robot_spec_fields(spec, robot_name=robot.name, current=locked)
             for field, value in fields.items():
                 setattr(locked, field, value)
             locked.save(update_fields=[*fields, "updated_at"])
@@ -133,8 +133,11 @@ def instant_action(robot: str, action_type: str) -> InstantAction:
     )
 
 
-def _robot_spec_fields(spec: Mapping[str, Any], *, robot_name: str) -> dict[str, Any]:
-    """Robot model fields from a spec in the API's shape, with the defaults of the fields it omits."""
+def _robot_spec_fields(spec: Mapping[str, Any], *, robot_name: str, current: Robot | None) -> dict[str, Any]:
+    """Robot model fields from a spec in the API's shape, with the defaults of the fields it omits.
+
+    A protocol setting (version, instant actions key) the spec omits keeps what the robot showed it
+    speaks (LEARNED); one it gives is the operator's, which nothing learned overrides."""
     unknown = set(spec) - SPEC_KEYS
     if unknown:
         raise UsageError(f"Unknown robot spec fields {sorted(unknown)}; allowed: {sorted(SPEC_KEYS)}.")
@@ -155,9 +158,21 @@ def _robot_spec_fields(spec: Mapping[str, Any], *, robot_name: str) -> dict[str,
         "manufacturer": vda5050.get("manufacturer", _default("manufacturer")),
         # The reference's topics use the robot name as serial number.
         "serial_number": vda5050.get("serial_number", robot_name),
-        "protocol_version": vda5050.get("version", _default("protocol_version")),
-        "instant_actions_key": vda5050.get("instant_actions_key", _default("instant_actions_key")),
+        **_protocol_setting(vda5050, "version", "protocol_version", current),
+        **_protocol_setting(vda5050, "instant_actions_key", "instant_actions_key", current),
     }
+
+
+def _protocol_setting(
+    vda5050: Mapping[str, Any], key: str, field: str, current: Robot | None
+) -> dict[str, Any]:
+    """`field` and `<field>_source` from the spec's `key`, or what the robot has learned, or the default."""
+    source = f"{field}_source"
+    if key in vda5050:
+        return {field: vda5050[key], source: SettingSource.OPERATOR}
+    if current is not None and getattr(current, source) == SettingSource.LEARNED:
+        return {field: getattr(current, field), source: SettingSource.LEARNED}
+    return {field: _default(field), source: SettingSource.DEFAULT}
 
 
 def _default(field: str) -> Any:

@@ -19,7 +19,15 @@ from fleet.api import (
     object_name_validator,
     validate_positive,
 )
-from robots.choices import AgvClass, InstantActionsKey, Lifecycle, ProtocolVersion, RobotState, TeleopAction
+from robots.choices import (
+    AgvClass,
+    InstantActionsKey,
+    Lifecycle,
+    ProtocolVersion,
+    RobotState,
+    SettingSource,
+    TeleopAction,
+)
 from robots.models import Robot
 
 
@@ -64,12 +72,18 @@ class Vda5050IdentitySerializer(StrictSerializer):
     version = serializers.ChoiceField(
         choices=ProtocolVersion.choices,
         required=False,
-        help_text=f"VDA 5050 version the robot speaks; default {settings.VDA5050_VERSION!r} (setting).",
+        help_text=(
+            "VDA 5050 version the robot speaks. Omitted: the robot's factsheet (or the topic it speaks on) "
+            f"tells, until then {settings.VDA5050_VERSION!r} (setting)."
+        ),
     )
     instant_actions_key = serializers.ChoiceField(
         choices=InstantActionsKey.choices,
         required=False,
-        help_text="Array key of instantActions: 'actions' (VDA 5050 2.x) or the older 'instantActions'.",
+        help_text=(
+            "Array key of instantActions: 'actions' (VDA 5050 2.x) or the older 'instantActions'. Omitted: "
+            "'actions', switched to 'instantActions' if the robot rejects 'actions' (compatibility rule)."
+        ),
     )
 
 
@@ -123,12 +137,28 @@ class RobotBatterySerializer(serializers.Serializer):
     recommended_maximum = serializers.FloatField(source="battery_recommended_maximum", allow_null=True)
 
 
+class CompatibilityRuleSerializer(serializers.Serializer):
+    rule = serializers.CharField(help_text="Name of the rule (README, 'Vehicle compatibility rules').")
+    applied_at = serializers.DateTimeField()
+    reason = serializers.CharField(help_text="What the robot said that made the rule apply.")
+
+
 class RobotVda5050Serializer(serializers.Serializer):
     interface_name = serializers.CharField()
     manufacturer = serializers.CharField()
     serial_number = serializers.CharField()
     version = serializers.ChoiceField(source="protocol_version", choices=ProtocolVersion.choices)
+    version_source = serializers.ChoiceField(
+        source="protocol_version_source",
+        choices=SettingSource.choices,
+        help_text="OPERATOR (given in the spec), DEFAULT, or LEARNED from the robot's factsheet or topic.",
+    )
     instant_actions_key = serializers.ChoiceField(choices=InstantActionsKey.choices)
+    instant_actions_key_source = serializers.ChoiceField(
+        choices=SettingSource.choices,
+        help_text="OPERATOR (given in the spec), DEFAULT, or LEARNED by a compatibility rule.",
+    )
+    compatibility_rules = CompatibilityRuleSerializer(many=True)
 
 
 class SoftwareVersionSerializer(serializers.Serializer):

@@ -35,7 +35,10 @@ ROBOT_EXAMPLE = OpenApiExample(
             "manufacturer": "RobotCompany",
             "serial_number": "carter01",
             "version": "2.0.0",
+            "version_source": "DEFAULT",
             "instant_actions_key": "actions",
+            "instant_actions_key_source": "DEFAULT",
+            "compatibility_rules": [],
         },
         "name": "carter01",
         "status": {

@@ -28,7 +28,10 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "manufacturer": settings.VDA5050_MANUFACTURER,
             "serial_number": "carter01",
             "version": settings.VDA5050_VERSION,
+            "version_source": "DEFAULT",
             "instant_actions_key": "actions",
+            "instant_actions_key_source": "DEFAULT",
+            "compatibility_rules": [],
         },
         "name": "carter01",
         "status": {
@@ -131,7 +134,12 @@ def test_vda5050_identity_is_stored_and_returned(api):
     response = api.post("/robot", {"name": "carter01", "vda5050": identity})
 
     assert response.status_code == 200
-    assert response.json()["vda5050"] == identity
+    assert response.json()["vda5050"] == {
+        **identity,
+        "version_source": "OPERATOR",
+        "instant_actions_key_source": "OPERATOR",
+        "compatibility_rules": [],
+    }
     robot = Robot.objects.get(name="carter01")
     assert (robot.interface_name, robot.manufacturer, robot.serial_number) == ("fleet2", "Acme", "SN-0001")
     assert (robot.protocol_version, robot.instant_actions_key) == ("2.1.0", "instantActions")
@@ -145,7 +153,10 @@ def test_vda5050_fields_left_out_take_their_defaults(api):
         "manufacturer": "Acme",
         "serial_number": "carter01",
         "version": settings.VDA5050_VERSION,
+        "version_source": "DEFAULT",
         "instant_actions_key": "actions",
+        "instant_actions_key_source": "DEFAULT",
+        "compatibility_rules": [],
     }
 
 
@@ -174,7 +185,7 @@ def test_a_vda5050_identity_in_use_is_a_usage_error(api):
         ({"battery": 5}, ["body", "battery"], "invalid"),
         ({"battery": None}, ["body", "battery"], "null"),
         ({"switch_teleop": "sometimes"}, ["body", "switch_teleop"], "invalid"),
-        ({"vda5050": {"version": "3.0.0"}}, ["body", "vda5050", "version"], "invalid_choice"),
+        ({"vda5050": {"version": "3.1.0"}}, ["body", "vda5050", "version"], "invalid_choice"),
         (
             {"vda5050": {"instant_actions_key": "acts"}},
             ["body", "vda5050", "instant_actions_key"],

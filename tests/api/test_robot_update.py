@@ -64,7 +64,10 @@ def test_fields_the_body_omits_go_back_to_their_defaults(api):
         "manufacturer": settings.VDA5050_MANUFACTURER,
         "serial_number": "carter01",
         "version": settings.VDA5050_VERSION,
+        "version_source": "DEFAULT",
         "instant_actions_key": "actions",
+        "instant_actions_key_source": "DEFAULT",
+        "compatibility_rules": [],
     }
 
 
@@ -121,3 +124,22 @@ def test_a_vda5050_identity_in_use_is_a_usage_error(api):
     assert response.status_code == 400
     assert response.json()["error_code"] == "USAGE"
     assert Robot.objects.get(name="carter02").serial_number == "carter02"
+
+
+def test_put_keeps_learned_protocol_settings_and_an_operators_choice_wins(api):
+    """What the robot showed it speaks survives a PUT that omits it; a PUT that gives it is final."""
+    RobotFactory(
+        name="carter01",
+        protocol_version="3.0.0",
+        protocol_version_source="LEARNED",
+        instant_actions_key="instantActions",
+        instant_actions_key_source="LEARNED",
+    )
+
+    kept = api.put("/robot/carter01", {}).json()["vda5050"]
+    chosen = api.put("/robot/carter01", {"vda5050": {"instant_actions_key": "actions"}}).json()["vda5050"]
+
+    assert (kept["version"], kept["version_source"]) == ("3.0.0", "LEARNED")
+    assert (kept["instant_actions_key"], kept["instant_actions_key_source"]) == ("instantActions", "LEARNED")
+    assert (chosen["instant_actions_key"], chosen["instant_actions_key_source"]) == ("actions", "OPERATOR")
+    assert (chosen["version"], chosen["version_source"]) == ("3.0.0", "LEARNED")

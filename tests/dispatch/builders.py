@@ -253,7 +253,7 @@ def checked_step(
     state_arrived_at: datetime | None = None,
     settings: dispatch.DispatchSettings = SETTINGS,
 ) -> dispatch.StepResult:
-    """`dispatch.step`, with every emitted message checked against both schema versions. The state arrived
+    """`dispatch.step`, with every emitted message checked against every schema version. The state arrived
     at `state_arrived_at`, by default just now."""
     result = dispatch.step(
         now=now,
