@@ -12,6 +12,7 @@ from django.db import connection, transaction
 
 from fleet import livestate
 from fleet.wake import request_steps
+from robots.choices import SettingSource
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, instant_action
 
@@ -42,6 +43,17 @@ def robots_came_online(*, names: Sequence[str]) -> None:
         InstantAction.objects.bulk_create(
             [instant_action(name, FACTSHEET_REQUEST) for name in locked if name not in waiting]
         )
+
+
+def robot_protocol_version_learn(*, name: str, version: str) -> bool:
+    """Speak `version` to the robot from now on, as its own messages say, unless an operator chose its
+    version; True if that changed it. Its step (which the caller requests) sends what waits anew."""
+    return bool(
+        Robot.objects.filter(name=name)
+        .exclude(protocol_version_source=SettingSource.OPERATOR)
+        .exclude(protocol_version=version, protocol_version_source=SettingSource.LEARNED)
+        .update(protocol_version=version, protocol_version_source=SettingSource.LEARNED)
+    )
 
 
 def robot_check_heartbeats(*, now: float | None = None) -> list[str]:

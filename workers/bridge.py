@@ -34,14 +34,15 @@ from fleet.db import drop_broken_connections, jsonb
 from missions.dispatch import StateDigest, state_digest, takes_order_only
 from missions.robot_step import mission_orders_accepted
 from missions.selectors import robots_with_missions
-from robots.choices import AgvClass
+from robots.choices import AgvClass, SettingSource
 from robots.models import Robot
-from robots.status import robot_status_write, robots_came_online
+from robots.status import robot_protocol_version_learn, robot_status_write, robots_came_online
 from vda5050.codec import nested_deeper, parse_connection, parse_factsheet, parse_state, parse_visualization
 from vda5050.errors import PayloadError, ProtocolError
 from vda5050.models import Connection, ConnectionState, Factsheet, State, Visualization
 from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_version_of, parse_topic
 from vda5050.topics import shared_subscription as shared_filter
+from vda5050.versions import SUPPORTED_VERSIONS, supported_version
 from workers import metrics
 from workers.mqtt import new_client
 from workers.stepper import keep_trying, settle_long_lived_process
@@ -50,6 +51,7 @@ from workers.steps import request_steps
 logger = logging.getLogger(__name__)
 
 SUBSCRIBED_TOPICS = (Topic.STATE, Topic.CONNECTION, Topic.FACTSHEET, Topic.VISUALIZATION)
+SPOKEN_MAJORS = frozenset(major_version_of(version) for version in SUPPORTED_VERSIONS)
 # Messages handled per pipeline round trip. A batch's steps are requested once all of it is handled, so a
 # backlog (the bridge starved of CPU for a moment) is worked off in small batches: with 2,000, a state
 # that needs a step waited behind hundreds of periodic ones (bench/README.md, "What changed": N=2000).
@@ -127,6 +129,7 @@ class Received:
     payload: bytes
     order: tuple[int, int] | None
     digest: StateDigest | None = None  # a state's
+    major_version: str = ""  # of the topic it came on
 
 
 PARSERS: dict[Topic, Callable[[bytes], State | Connection | Factsheet | Visualization]] = {
@@ -180,10 +183,14 @@ class Flush:
 
 
 class RobotDirectory:
-    """Which robot a topic belongs to: (interface, major version, manufacturer, serial number) -> name."""
+    """Which robot a topic belongs to: (interface, major version, manufacturer, serial number) -> name.
+
+    A robot whose version no operator chose is found on every major version we speak: the version it
+    speaks is learned from its messages (`Bridge._learn_version`)."""
 
     def __init__(self) -> None:
         self._names: dict[RobotIdentity, str] = {}
+        self.versions: dict[str, tuple[str, bool]] = {}  # name -> (version we speak, chosen by an operator)
         self._loaded_at = float("-inf")
 
     def name(self, identity: RobotIdentity) -> str | None:
@@ -195,12 +202,21 @@ class RobotDirectory:
 
     def reload(self) -> None:
         rows = Robot.objects.values_list(
-            "name", "interface_name", "manufacturer", "serial_number", "protocol_version"
+            "name",
+            "interface_name",
+            "manufacturer",
+            "serial_number",
+            "protocol_version",
+            "protocol_version_source",
         )
-        self._names = {
-            RobotIdentity(interface, major_version_of(version), manufacturer, serial): name
-            for name, interface, manufacturer, serial, version in rows
-        }
+        self._names = {}
+        self.versions = {}
+        for name, interface, manufacturer, serial, version, source in rows:
+            by_operator = source == SettingSource.OPERATOR
+            majors = {major_version_of(version)} if by_operator else SPOKEN_MAJORS
+            for major in majors:
+                self._names[RobotIdentity(interface, major, manufacturer, serial)] = name
+            self.versions[name] = (version, by_operator)
         self._loaded_at = time.monotonic()
 
 
@@ -383,6 +399,8 @@ class Bridge:
                     late[metrics.MESSAGES_INVALID, received.kind.value, Drop.REFUSED] += 1
                     where = f"robot {received.name}'s {received.kind}"
                     self._drop_log.log(logging.WARNING, received.kind, Drop.REFUSED, where, str(exc))
+            if code not in (livestate.REPLAYED, livestate.STALE) and self._learn_version(received):
+                changed.add(received.name)  # what waits for the robot goes out again, in its version
         if late:
             counters = livestate.client().pipeline(transaction=False)
             for (counter, topic_label, reason), by in late.items():
@@ -424,7 +442,7 @@ class Bridge:
         if isinstance(message, Connection) and message.connection_state == ConnectionState.ONLINE:
             return Received(name, kind, message, payload, None)  # changes nothing: see `_order`
         digest = state_digest(message) if isinstance(message, State) else None
-        return Received(name, kind, message, payload, order, digest)
+        return Received(name, kind, message, payload, order, digest, identity.major_version)
 
     def _stored_state(self, received: Received, store: livestate.Stored, changed: set[str]) -> None:
         state = received.message
@@ -510,6 +528,28 @@ class Bridge:
 
     def _pending(self, name: str) -> dict[str, Any]:
         return self._status(name).pending
+
+    def _learn_version(self, received: Received) -> bool:
+        """Speak to the robot the version its message says (the newest we speak of its major version, see
+        `vda5050.versions.supported_version`), unless an operator chose one; True if that changed it. The
+        topic's major version is the robot's word too: a version the header names on another major's topic
+        is not learned. A write PostgreSQL refuses is tried again with the robot's next message."""
+        current, by_operator = self.directory.versions.get(received.name, (None, True))
+        said = received.message.version
+        version = supported_version(said) if said is not None else None
+        if by_operator or version in (None, current) or major_version_of(version) != received.major_version:
+            return False
+        try:
+            if not robot_protocol_version_learn(name=received.name, version=version):
+                return False
+        except DatabaseError:
+            logger.exception("robot %s: version %s not stored", received.name, version)
+            return False
+        logger.info(
+            "robot %s speaks VDA 5050 %s (its %s says %s)", received.name, version, received.kind, said
+        )
+        self.directory.reload()
+        return True
 
     def _store_factsheet(self, received: Received) -> None:
         factsheet = received.message
