@@ -12,7 +12,6 @@ from pathlib import Path
 from simulator.config import (
     DEFAULT_INTERFACE_NAME,
     ROBOT_SPEC_FIELDS,
-    SUPPORTED_VERSIONS,
     RobotConfig,
     SimulationSettings,
     parse_credentials,
@@ -22,6 +21,7 @@ from simulator.config import (
 from simulator.robot import SimulatedRobot
 from simulator.runner import BrokerSettings, Fleet
 from vda5050.topics import RobotAddress, major_version_of
+from vda5050.versions import SUPPORTED_VERSIONS
 
 logger = logging.getLogger("simulator")
 
@@ -60,7 +60,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--state_period", type=float, default=1.0, help="s, longest gap between state messages"
     )
     parser.add_argument("--visualization_period", type=float, default=1.0, help="s; 0 disables visualization")
-    parser.add_argument("--vda_version", choices=SUPPORTED_VERSIONS, default="2.0.0")
+    parser.add_argument(
+        "--vda_version",
+        choices=SUPPORTED_VERSIONS,
+        default="2.0.0",
+        help="protocol version of robots whose spec gives none",
+    )
     parser.add_argument("--interface_name", default=DEFAULT_INTERFACE_NAME, help="first topic level")
     parser.add_argument(
         "--mqtt_prefix",
@@ -138,19 +143,20 @@ def broker_settings(
 
 def topic_address(config: RobotConfig, args: argparse.Namespace) -> RobotAddress:
     """Topic levels of one robot: ``--mqtt_prefix`` if given, else interface/v<major>/manufacturer."""
+    version = config.vda_version or args.vda_version
     if args.mqtt_prefix is None:
-        return RobotAddress(args.interface_name, config.manufacturer, config.serial, args.vda_version)
+        return RobotAddress(args.interface_name, config.manufacturer, config.serial, version)
     levels = args.mqtt_prefix.strip("/").split("/")
     if len(levels) != PREFIX_LEVELS:
         raise ValueError(
             f"--mqtt_prefix {args.mqtt_prefix!r} must be interfaceName/majorVersion/manufacturer"
         )
     interface_name, major, manufacturer = levels
-    if major != major_version_of(args.vda_version):
+    if major != major_version_of(version):
         raise ValueError(
-            f"--mqtt_prefix major version {major!r} does not match --vda_version {args.vda_version}"
+            f"--mqtt_prefix major version {major!r} does not match robot {config.name}'s {version}"
         )
-    return RobotAddress(interface_name, manufacturer, config.serial, args.vda_version)
+    return RobotAddress(interface_name, manufacturer, config.serial, version)
 
 
 def settings_from(args: argparse.Namespace) -> SimulationSettings:

@@ -6,13 +6,15 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 
+from vda5050.versions import SUPPORTED_VERSIONS
+
 DEFAULT_MAP_ID = "map"
 DEFAULT_BATTERY = 20.0
 DEFAULT_MANUFACTURER = "RobotCompany"
 DEFAULT_INTERFACE_NAME = "uagv"
-SUPPORTED_VERSIONS = ("2.0.0", "2.1.0")
 ROBOT_SPEC_FIELDS = (
-    "name,x,y[,theta[,map_id[,failure_period[,battery[,manufacturer[,serial_number[,robot_type]]]]]]]"
+    "name,x,y[,theta[,map_id[,failure_period[,battery[,manufacturer[,serial_number[,robot_type"
+    "[,vda_version[,stack]]]]]]]]]]"
 )
 
 
@@ -30,6 +32,17 @@ class RobotType(StrEnum):
     HUMANOID = "HUMANOID"
 
 
+class Stack(StrEnum):
+    """The vehicle software a robot behaves like: strict (the document, to the letter), or a real stack
+    with its known deviations, to test the server's compatibility rules against."""
+
+    STRICT = "strict"
+    # npm vda-5050-lib 1.4.0's AgvController (recorded from it): reads instant actions only under the 1.1
+    # key `instantActions` and rejects `actions` with a validationError naming it; answers a cancelOrder
+    # without an order with a noOrderToCancel error and no action state.
+    VDA_5050_LIB_1_4 = "vda-5050-lib-1.4"
+
+
 @dataclass(frozen=True)
 class RobotConfig:
     """One ``--robots`` entry: who the robot is and where it starts."""
@@ -44,6 +57,8 @@ class RobotConfig:
     manufacturer: str = DEFAULT_MANUFACTURER
     serial_number: str = ""
     robot_type: RobotType = RobotType.CARRIER
+    vda_version: str = ""  # empty: the simulation's --vda_version
+    stack: Stack = Stack.STRICT
 
     @property
     def serial(self) -> str:
@@ -100,15 +115,17 @@ def parse_credentials(text: str) -> dict[str, Credentials]:
 
 
 def parse_robot_spec(spec: str) -> RobotConfig:
-    """``carter01,4,5`` or ``carter02,9,9,3.14,map,3,80,Acme,sn-2,MANIPULATOR`` -> RobotConfig."""
+    """``carter01,4,5`` or ``carter02,9,9,3.14,map,3,80,Acme,sn-2,MANIPULATOR,3.0.0`` -> RobotConfig."""
     fields = [field.strip() for field in spec.split(",")]
-    if len(fields) < 3 or len(fields) > 10:
+    if len(fields) < 3 or len(fields) > 12:
         raise ValueError(f"robot spec {spec!r} must be {ROBOT_SPEC_FIELDS}")
     name, x, y, *optional = fields
     if not name:
         raise ValueError(f"robot spec {spec!r} has no name")
-    optional += [""] * (7 - len(optional))
-    theta, map_id, failure_period, battery, manufacturer, serial_number, robot_type = optional
+    optional += [""] * (9 - len(optional))
+    theta, map_id, failure_period, battery, manufacturer, serial_number, robot_type, vda_version, stack = (
+        optional
+    )
     config = RobotConfig(
         name=name,
         x=_finite(x, "x", spec),
@@ -120,7 +137,11 @@ def parse_robot_spec(spec: str) -> RobotConfig:
         manufacturer=manufacturer or DEFAULT_MANUFACTURER,
         serial_number=serial_number,
         robot_type=RobotType(robot_type.upper()) if robot_type else RobotType.CARRIER,
+        vda_version=vda_version,
+        stack=Stack(stack) if stack else Stack.STRICT,
     )
+    if vda_version and vda_version not in SUPPORTED_VERSIONS:
+        raise ValueError(f"robot spec {spec!r}: vda_version must be one of {', '.join(SUPPORTED_VERSIONS)}")
     if config.failure_period < 0:
         raise ValueError(f"robot spec {spec!r}: failure_period must be >= 0")
     if not 0 <= config.battery <= 100:

@@ -26,6 +26,7 @@ from vda5050.models import (
     VehicleConfig,
     VersionInfo,
 )
+from vda5050.versions import MAJOR_3, V2_0, major_of
 
 SERIES_NAME = "Mission Dispatch simulated robot"
 PLACEHOLDER_CLASS = AgvClass.CARRIER  # stands in for classes the 2.x enum lacks, patched on the wire
@@ -38,11 +39,17 @@ SUPPORTED_OPTIONAL_PARAMETERS = (
 SIMULATOR_SOFTWARE_VERSION = "1.0.0"
 
 
-def factsheet_content(config: RobotConfig, settings: SimulationSettings) -> FactsheetContent:
-    """A complete factsheet; MANIPULATOR/HUMANOID get a placeholder agvClass (see PLACEHOLDER_CLASS)."""
+def factsheet_content(config: RobotConfig, settings: SimulationSettings, version: str) -> FactsheetContent:
+    """A complete factsheet of ``version``; in 2.x, MANIPULATOR/HUMANOID get a placeholder agvClass (see
+    PLACEHOLDER_CLASS); 3.0's class is free text."""
+    is_3 = major_of(version) >= MAJOR_3
     standard_classes = {agv_class.value for agv_class in AgvClass}
-    agv_class = (
-        AgvClass(config.robot_type.value) if config.robot_type in standard_classes else PLACEHOLDER_CLASS
+    agv_class: AgvClass | str = (
+        AgvClass(config.robot_type.value)
+        if config.robot_type in standard_classes
+        else config.robot_type.value
+        if is_3
+        else PLACEHOLDER_CLASS
     )
     speed_max = 0.0 if config.robot_type == RobotType.MANIPULATOR else settings.speed
     return FactsheetContent(
@@ -95,16 +102,18 @@ def factsheet_content(config: RobotConfig, settings: SimulationSettings) -> Fact
                         for parameter in spec.parameters
                     ]
                     or None,
+                    pause_allowed=False if is_3 else None,  # required in 3.0
+                    cancel_allowed=True if is_3 else None,
                 )
                 for spec in ACTION_SPECS
             ],
         ),
         agv_geometry=AgvGeometry(),
         load_specification=LoadSpecification(),
-        localization_parameters={} if settings.version == "2.0.0" else None,
+        localization_parameters={} if version == V2_0 else None,
         vehicle_config=(
             VehicleConfig(versions=[VersionInfo(key="simulator", value=SIMULATOR_SOFTWARE_VERSION)])
-            if settings.version != "2.0.0"
+            if version != V2_0
             else None
         ),
     )

@@ -34,10 +34,10 @@ from simulator.actions import (
     plan_order_action,
     require,
 )
-from simulator.config import DEFAULT_INTERFACE_NAME, RobotConfig, SimulationSettings
+from simulator.config import DEFAULT_INTERFACE_NAME, RobotConfig, SimulationSettings, Stack
 from simulator.factsheet import factsheet_content
 from simulator.motion import Pose, Target, angle_difference, jump_to, normalize_angle, step_towards
-from vda5050.codec import encode, header_for, parse_instant_actions, parse_order
+from vda5050.codec import LEGACY_INSTANT_ACTIONS_KEY, encode, header_for, parse_instant_actions, parse_order
 from vda5050.errors import ProtocolError
 from vda5050.models import (
     Action,
@@ -72,6 +72,7 @@ from vda5050.models import (
 from vda5050.orders import check_order_graph
 from vda5050.state import FINAL_ACTION_STATUSES
 from vda5050.topics import RobotAddress, Topic, major_version_of, topic_for
+from vda5050.versions import MAJOR_3, V2_0, major_of
 
 # errorType values: the document's predefined ones, plus our own (vendor-specific) names.
 VALIDATION_ERROR = "validationError"
@@ -80,6 +81,19 @@ ORDER_UPDATE_ERROR = "orderUpdateError"
 NO_ORDER_TO_CANCEL = "noOrderToCancel"
 ACTION_ERROR = "actionError"
 SIMULATED_FAILURE = "simulatedFailure"
+# 3.0 renamed the predefined ones (UPPER_SNAKE); a 3.0 robot reports those names.
+ERROR_TYPES_3 = {
+    VALIDATION_ERROR: "VALIDATION_FAILURE",
+    ORDER_ERROR: "INVALID_ORDER_ACTION",
+    ORDER_UPDATE_ERROR: "OUTDATED_ORDER_UPDATE",
+    NO_ORDER_TO_CANCEL: "NO_ORDER_TO_CANCEL",
+}
+# What vda-5050-lib 1.4.0 reports for instant actions without the 1.1 key (Stack.VDA_5050_LIB_1_4).
+LIB_1_4_KEY_REJECTION = (
+    "invalid instant actions: TypeError: Invalid VDA 5050 InstantActions"
+    " at #/allOf/1/required, #/instantActions"
+)
+LIB_1_4_NO_ORDER = "instant action is not executable: no active order to be canceled"
 
 ACTION_FAILURE = "Action failure"  # Isaac Mission Dispatch shows this description as the failure reason
 FAILURE_PERIOD_REACHED = "Failure period reached"
@@ -113,6 +127,7 @@ class ActionRecord:
     result: str | None = None
     plan: ActionPlan | None = None
     ends_at: float | None = None  # None while running: until an outside event (stopTeleop)
+    instant: bool = False  # reported in 3.0's instantActionStates, not actionStates
 
     @property
     def done(self) -> bool:
@@ -149,10 +164,10 @@ class SimulatedRobot:
         """``topic_address`` gives the topic levels (default ``uagv/v<major>/<manufacturer>/<serial>``)."""
         self.config = config
         self.settings = settings
+        self.version = config.vda_version or settings.version
+        self.is_3 = major_of(self.version) >= MAJOR_3
         # who the robot is in message headers (the interface name is not part of a header)
-        self.address = RobotAddress(
-            DEFAULT_INTERFACE_NAME, config.manufacturer, config.serial, settings.version
-        )
+        self.address = RobotAddress(DEFAULT_INTERFACE_NAME, config.manufacturer, config.serial, self.version)
         self.topic_address = topic_address or self.address
         self._pose = Pose(config.x, config.y, normalize_angle(config.theta))
         self._map_id = config.map_id
@@ -227,7 +242,7 @@ class SimulatedRobot:
         return StateContent(
             maps=(
                 [Map(map_id=self._map_id, map_version=MAP_VERSION, map_status=MapStatus.ENABLED)]
-                if self.settings.version != "2.0.0"
+                if self.version != V2_0
                 else None
             ),
             order_id=self._order_id,
@@ -262,7 +277,12 @@ class SimulatedRobot:
             agv_position=self._agv_position(),
             velocity=self._velocity_model(),
             loads=list(self._loads),
-            action_states=[record.to_state() for record in self._actions.values()],
+            action_states=[
+                record.to_state() for record in self._actions.values() if not (self.is_3 and record.instant)
+            ],
+            instant_action_states=[record.to_state() for record in self._actions.values() if record.instant]
+            if self.is_3
+            else None,
             battery_state=BatteryState(battery_charge=self.config.battery, charging=False),
             errors=list(self._errors),
             information=[],
@@ -416,7 +436,7 @@ class SimulatedRobot:
         except ProtocolError as exc:
             raise Rejection(VALIDATION_ERROR, str(exc)) from None
         if major != self.address.major_version:
-            raise Rejection(VALIDATION_ERROR, f"version {message.version} is not {self.settings.version}")
+            raise Rejection(VALIDATION_ERROR, f"version {message.version} is not {self.version}")
 
     def _fail_on_purpose(self) -> None:
         """``failure_period``: every Nth order fails (FATAL: abandoned) or only warns and goes on."""
@@ -553,9 +573,16 @@ class SimulatedRobot:
     # --- instant actions ---------------------------------------------------------------------------
 
     def _receive_instant_actions(self, payload: bytes, now: float) -> None:
+        if self.config.stack == Stack.VDA_5050_LIB_1_4 and not _has_key(payload, LEGACY_INSTANT_ACTIONS_KEY):
+            self._add_rejection(
+                VALIDATION_ERROR, LIB_1_4_KEY_REJECTION, raw_references(Topic.INSTANT_ACTIONS, payload)
+            )
+            return
         try:
             message = parse_instant_actions(payload)
             self._check_addressee(message)
+            if self.is_3:
+                _check_instant_blocking(message.actions)
         except ProtocolError as exc:
             self._add_rejection(VALIDATION_ERROR, str(exc), raw_references(Topic.INSTANT_ACTIONS, payload))
             return
@@ -568,7 +595,9 @@ class SimulatedRobot:
         for action in message.actions:
             if action.action_id in self._actions:
                 continue  # a resend: it ran already, the state reports how
-            record = ActionRecord(action)
+            record = ActionRecord(action, instant=True)
+            if self._refuses_cancel_silently(record):
+                continue
             self._actions[action.action_id] = record
             self._run_instant(record, now)
 
@@ -602,6 +631,23 @@ class SimulatedRobot:
                 self._instant_action_failed(
                     record, f"unsupported instant action type {record.action.action_type!r}"
                 )
+
+    def _refuses_cancel_silently(self, record: ActionRecord) -> bool:
+        """vda-5050-lib 1.4.0: a cancelOrder without an order gets an error, and no action state."""
+        if not (
+            self.config.stack == Stack.VDA_5050_LIB_1_4
+            and record.action.action_type == ActionType.CANCEL_ORDER
+            and not self._busy()
+        ):
+            return False
+        references = [("topic", Topic.INSTANT_ACTIONS.value), ("actionId", record.action.action_id)]
+        self._add_error(
+            NO_ORDER_TO_CANCEL,
+            LIB_1_4_NO_ORDER,
+            ErrorLevel.WARNING,
+            [*references, ("actionType", "cancelOrder")],
+        )
+        return True
 
     def _cancel_order(self, record: ActionRecord) -> None:
         """Stop at once; unfinished actions FAILED, node/edge states emptied, orderId kept."""
@@ -669,9 +715,10 @@ class SimulatedRobot:
         self, error_type: str, description: str, level: ErrorLevel, references: list[tuple[str, str]]
     ) -> None:
         """Append an error; one repeating an existing error (but for the headerId) replaces it, so a
-        master resending a rejected order does not grow the list."""
+        master resending a rejected order does not grow the list. A 3.0 robot names predefined types as
+        3.0 does."""
         error = Error(
-            error_type=error_type,
+            error_type=ERROR_TYPES_3.get(error_type, error_type) if self.is_3 else error_type,
             error_description=description,
             error_level=level,
             error_references=[
@@ -697,7 +744,14 @@ class SimulatedRobot:
         period = self.settings.visualization_period
         if period > 0 and now >= self._visualization_due - self.settings.tick_period / 2:
             self._visualization_due = now + period
-            content = VisualizationContent(agv_position=self._agv_position(), velocity=self._velocity_model())
+            content = VisualizationContent(
+                agv_position=self._agv_position(),
+                velocity=self._velocity_model(),
+                # 3.0: the state this position goes with (the last one sent)
+                reference_state_header_id=max(self._header_ids.get(Topic.STATE, 0) - 1, 0)
+                if self.is_3
+                else None,
+            )
             messages.append(self._message(Topic.VISUALIZATION, content, now))
         return messages
 
@@ -705,9 +759,11 @@ class SimulatedRobot:
         return self._message(Topic.CONNECTION, ConnectionContent(connection_state=connection_state), now)
 
     def _factsheet(self, now: float) -> Outgoing:
-        message = self._message(Topic.FACTSHEET, factsheet_content(self.config, self.settings), now)
+        message = self._message(
+            Topic.FACTSHEET, factsheet_content(self.config, self.settings, self.version), now
+        )
         agv_class = self.config.robot_type.value
-        if agv_class in STANDARD_AGV_CLASSES:
+        if agv_class in STANDARD_AGV_CLASSES or self.is_3:  # 3.0's mobileRobotClass is free text
             return message
         # Isaac's MANIPULATOR/HUMANOID are outside the 2.x enum; publish them as Isaac's robots do.
         body = orjson.loads(message.payload)
@@ -770,6 +826,21 @@ def order_references(order: Order) -> list[tuple[str, str]]:
         ("orderId", order.order_id),
         ("orderUpdateId", str(order.order_update_id)),
     ]
+
+
+def _has_key(payload: bytes, key: str) -> bool:
+    try:
+        data: Any = orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        return False
+    return isinstance(data, dict) and key in data
+
+
+def _check_instant_blocking(actions: list[Action]) -> None:
+    """3.0: instant actions are NONE-blocking."""
+    for index, action in enumerate(actions):
+        if action.blocking_type != "NONE":
+            raise Rejection(VALIDATION_ERROR, f"actions[{index}].blockingType must be NONE in VDA 5050 3.0")
 
 
 def raw_references(kind: Topic, payload: bytes) -> list[tuple[str, str]]:

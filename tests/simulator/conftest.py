@@ -54,8 +54,11 @@ STANDARD_AGV_CLASSES = {agv_class.value for agv_class in AgvClass}
 
 def validate(kind: str, message: dict[str, Any]) -> None:
     """Official schema check. Isaac's MANIPULATOR/HUMANOID agvClass is outside the 2.x enum on purpose
-    (Dispatch filters robots by it), so only that one field is exempt."""
-    if kind == Topic.FACTSHEET and message["typeSpecification"]["agvClass"] not in STANDARD_AGV_CLASSES:
+    (Dispatch filters robots by it), so only that one field is exempt (3.0's mobileRobotClass is free)."""
+    if (
+        kind == Topic.FACTSHEET
+        and message["typeSpecification"].get("agvClass", "CARRIER") not in STANDARD_AGV_CLASSES
+    ):
         message = orjson.loads(orjson.dumps(message))
         message["typeSpecification"]["agvClass"] = AgvClass.CARRIER.value
     validate_message(kind, message["version"], message)
