@@ -750,6 +750,7 @@ class StateDigest:
 
 
 def state_digest(state: State) -> StateDigest:
+    actions = vda_state.all_action_states(state)  # 3.0 reports instant actions apart
     progress = [
         state.order_id,
         str(state.order_update_id),
@@ -757,19 +758,13 @@ def state_digest(state: State) -> StateDigest:
         str(state.last_node_sequence_id),
         ",".join(str(node.sequence_id) for node in state.node_states),
         str(len(state.edge_states)),
-        ",".join(
-            f"{a.action_id}={a.action_status.value}"
-            for a in state.action_states
-            if a.action_status not in FINAL
-        ),
+        ",".join(f"{a.action_id}={a.action_status.value}" for a in actions if a.action_status not in FINAL),
     ]
     events = [
-        ",".join(
-            f"{a.action_id}={a.action_status.value}" for a in state.action_states if a.action_status in FINAL
-        ),
+        ",".join(f"{a.action_id}={a.action_status.value}" for a in actions if a.action_status in FINAL),
         # Started: a state that takes an order whose action is already under way (a pause_order the robot
         # starts where it stands) needs its step, which puts the robot in TELEOP.
-        ",".join(a.action_id for a in state.action_states if a.action_status in STARTED),
+        ",".join(a.action_id for a in actions if a.action_status in STARTED),
         ",".join(
             f"{e.error_type}/{e.error_level.value}/"
             + "+".join(f"{r.reference_key}:{r.reference_value}" for r in e.error_references or ())

@@ -28,7 +28,7 @@ from tests.dispatch.builders import (
     route,
     started,
 )
-from vda5050.models import ActionStatus, ActionType, ErrorLevel, OperatingMode, State
+from vda5050.models import ActionState, ActionStatus, ActionType, ErrorLevel, OperatingMode, State
 
 # A scenario sets a dispatcher up and returns the state of the step under test and how much later it runs.
 Scenario = Callable[[], tuple[Dispatcher, State, float]]
@@ -224,6 +224,14 @@ BASE = on_order(
         ),
         pytest.param({"operating_mode": OperatingMode.MANUAL}, id="operating-mode"),
         pytest.param({"paused": True}, id="paused"),
+        pytest.param(  # 3.0 reports instant actions apart from the order's
+            {
+                "instant_action_states": [
+                    ActionState(action_id="teleop-1", action_status=ActionStatus.FINISHED)
+                ]
+            },
+            id="3.0-instant-action",
+        ),
     ],
 )
 def test_the_digest_changes_with_what_steps_read(change: dict) -> None:

@@ -10,7 +10,16 @@ import pytest
 from django.conf import settings
 
 from tests.e2e.conftest import Process
-from tests.e2e.helpers import action, create_robot, get, post_mission, route, wait_mission, wait_mission_where
+from tests.e2e.helpers import (
+    action,
+    create_robot,
+    get,
+    post_mission,
+    route,
+    wait_mission,
+    wait_mission_where,
+    wait_robot,
+)
 from tests.waiting import wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
@@ -41,6 +50,19 @@ def test_a_fleet_of_2_0_2_1_and_3_0_robots_runs_the_same_missions(api, unique, s
         assert {o["version"] for o in orders} == {version}
     orders_3 = recorder.for_robot(robots["3.0.0"], "order")
     assert all("startNodeId" not in edge for order in orders_3 for edge in order["edges"])
+
+
+def test_teleop_of_a_3_0_robot_whose_instant_actions_report_apart(api, unique, simulator):
+    """3.0 reports startTeleop/stopTeleop in instantActionStates: they must still move the robot's state."""
+    robot = unique("tele3")
+    simulator(f"{robot},0,0,0,map,0,80,RobotCompany,{robot},CARRIER,3.0.0")
+    create_robot(api, robot, vda5050={"version": "3.0.0"})
+    wait_robot(api, robot, online=True)
+
+    assert api.post(f"/robot/{robot}/teleop?params=START").status_code == 200
+    wait_robot(api, robot, state="TELEOP")
+    assert api.post(f"/robot/{robot}/teleop?params=STOP").status_code == 200
+    wait_robot(api, robot, state="IDLE")
 
 
 def test_a_vda_5050_lib_1_4_robot_cancels_a_running_mission_with_no_setting_changed(
