@@ -29,16 +29,19 @@ class AgvClass(models.TextChoices):
 
 
 class ProtocolVersion(models.TextChoices):
-    V2_0_0 = "2.0.0"
-    V2_1_0 = "2.1.0"
-    V3_0_0 = "3.0.0"
+    """The VDA 5050 versions a robot may speak (`vda5050.versions.SUPPORTED_VERSIONS`), as spelled."""
+
+    V2_0_0 = "2.0.0", "2.0.0"
+    V2_1_0 = "2.1.0", "2.1.0"
+    V3_0_0 = "3.0.0", "3.0.0"
 
 
 class InstantActionsKey(models.TextChoices):
-    """Array key of outgoing instantActions messages: the spec's, or the 1.1 name some clients still read."""
+    """Array key of outgoing instantActions messages: the spec's, or the 1.1 name some clients still read
+    (labelled as spelled: the admin shows the wire names)."""
 
-    ACTIONS = "actions"
-    INSTANT_ACTIONS = "instantActions"
+    ACTIONS = "actions", "actions"
+    INSTANT_ACTIONS = "instantActions", "instantActions"
 
 
 class SettingSource(models.TextChoices):
@@ -46,9 +49,9 @@ class SettingSource(models.TextChoices):
     final; a default gives way to what the robot shows it speaks (LEARNED: its factsheet or topic for the
     version, a compatibility rule for the key)."""
 
-    OPERATOR = "OPERATOR"
-    DEFAULT = "DEFAULT"
-    LEARNED = "LEARNED"
+    OPERATOR = "OPERATOR", "OPERATOR"
+    DEFAULT = "DEFAULT", "DEFAULT"
+    LEARNED = "LEARNED", "LEARNED"
 
 
 # States from which teleop may be switched on or off.

@@ -202,3 +202,39 @@ def test_bulk_delete_leaves_a_robot_with_a_running_mission_pending_delete(admin_
         messages.INFO,
         "PENDING_DELETE until the engine has failed their running mission: busy.",
     ) in sent_messages(response)
+
+
+LEARNED_LEGACY = {
+    "protocol_version": "3.0.0",
+    "protocol_version_source": "LEARNED",
+    "instant_actions_key": "instantActions",
+    "instant_actions_key_source": "LEARNED",
+    "compatibility_rules": [
+        {
+            "rule": "legacy_instant_actions_key",
+            "applied_at": "2026-11-26T10:00:00+00:00",
+            "reason": "#/instantActions",
+        }
+    ],
+}
+
+
+def test_the_change_page_shows_the_version_its_source_and_the_compatibility_rules(admin_client: Client):
+    robot = RobotFactory(**LEARNED_LEGACY)
+
+    page = admin_client.get(change_url(robot)).content.decode()
+    listing = admin_client.get(CHANGELIST, {"protocol_version": "3.0.0"})
+
+    assert "3.0.0" in page and "LEARNED" in page and "legacy_instant_actions_key" in page
+    assert listed(listing) == [robot.name]
+
+
+def test_an_admin_save_keeps_what_the_robot_taught(admin_client: Client, woken: list[str]):
+    robot = RobotFactory(**LEARNED_LEGACY)
+
+    assert admin_client.post(change_url(robot), spec_form(heartbeat_timeout="12")).status_code == 302
+
+    robot.refresh_from_db()
+    assert (robot.protocol_version, robot.protocol_version_source) == ("3.0.0", "LEARNED")
+    assert (robot.instant_actions_key, robot.instant_actions_key_source) == ("instantActions", "LEARNED")
+    assert [rule["rule"] for rule in robot.compatibility_rules] == ["legacy_instant_actions_key"]
