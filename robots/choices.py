@@ -7,6 +7,7 @@ vocabulary enum's names and values, and labels derived from the names as Django 
 from django.db import models
 
 from missions import vocabulary
+from vda5050.versions import SUPPORTED_VERSIONS
 
 Lifecycle = models.TextChoices("Lifecycle", [(m.name, m.value) for m in vocabulary.Lifecycle])
 RobotState = models.TextChoices("RobotState", [(m.name, m.value) for m in vocabulary.RobotState])
@@ -28,12 +29,11 @@ class AgvClass(models.TextChoices):
     HUMANOID = "HUMANOID"
 
 
-class ProtocolVersion(models.TextChoices):
-    """The VDA 5050 versions a robot may speak (`vda5050.versions.SUPPORTED_VERSIONS`), as spelled."""
-
-    V2_0_0 = "2.0.0", "2.0.0"
-    V2_1_0 = "2.1.0", "2.1.0"
-    V3_0_0 = "3.0.0", "3.0.0"
+# The VDA 5050 versions a robot may speak (V2_0_0 = "2.0.0", ...), labelled as spelled.
+ProtocolVersion = models.TextChoices(
+    "ProtocolVersion",
+    [(f"V{version.replace('.', '_')}", (version, version)) for version in SUPPORTED_VERSIONS],
+)
 
 
 class InstantActionsKey(models.TextChoices):
