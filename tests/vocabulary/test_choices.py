@@ -64,7 +64,16 @@ def test_model_fields_offer_exactly_the_vocabulary(model, field, enum):
     assert values == [member.value for member in enum]
 
 
-@pytest.mark.parametrize("path", sorted(settings.SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"].values()))
+# Overrides of the vocabulary's concepts (others, such as robots' SettingSource, name choice sets that two
+# fields share and are not vocabulary).
+VOCABULARY_OVERRIDES = sorted(
+    path
+    for path in settings.SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"].values()
+    if path.rsplit(".", 1)[-1] in VOCABULARY
+)
+
+
+@pytest.mark.parametrize("path", VOCABULARY_OVERRIDES)
 def test_openapi_enum_overrides_name_vocabulary_choices(path):
     choices = import_string(path)
     assert choices.values == [member.value for member in VOCABULARY[choices.__name__]]
