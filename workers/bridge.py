@@ -419,7 +419,13 @@ class Bridge:
         name = self.directory.name(identity)
         if name is None:
             raise Dropped(Drop.UNKNOWN_ROBOT, "no robot has these topic levels")
-        arrived[kind.value] += 1
+        # A robot whose version no operator chose is found on every major version's topics (RobotDirectory);
+        # a message on another major version's topic than the one it speaks is its own only if its header
+        # names a version of that major (which it then speaks: `_learn_version`).
+        speaks = self.directory.versions[name][0]
+        elsewhere = major_version_of(speaks) != identity.major_version
+        if not elsewhere:
+            arrived[kind.value] += 1
         if len(payload) > settings.MQTT_MAX_PAYLOAD_BYTES:
             raise Dropped(Drop.TOO_LARGE, f"{len(payload)} bytes, over {settings.MQTT_MAX_PAYLOAD_BYTES}")
         try:
@@ -429,6 +435,15 @@ class Bridge:
             raise Dropped(Drop(exc.problem.value), str(exc)) from None
         except ProtocolError as exc:
             raise Dropped(Drop.SCHEMA, str(exc)) from None
+        if elsewhere:
+            said = supported_version(message.version) if message.version is not None else None
+            if said is None or major_version_of(said) != identity.major_version:
+                raise Dropped(
+                    Drop.UNKNOWN_ROBOT,
+                    f"robot {name} speaks {speaks}, this message on a {identity.major_version}"
+                    f" topic says {message.version!r}",
+                )
+            arrived[kind.value] += 1
         if order is not None and order[0] > (time.time() + FUTURE_TOLERANCE_SECONDS) * 1000:
             raise Dropped(Drop.FUTURE, f"timestamp {message.timestamp} is ahead of this host's clock")
         if NUL_ESCAPE in payload and _holds_nul(orjson.loads(payload)):

@@ -6,6 +6,7 @@ from datetime import timedelta
 import orjson
 import pytest
 
+from fleet import livestate
 from robots.models import Robot
 from tests.bridge.messages import T0, step_requested
 from tests.dispatch.builders import robot_state
@@ -80,3 +81,18 @@ def test_a_header_version_of_another_major_than_the_topic_is_not_learned(bridge:
     bridge.handle([(topic, orjson.dumps(body))])
 
     assert Robot.objects.get(name=robot.name).protocol_version == "2.0.0"
+
+
+def test_a_message_on_another_majors_topic_naming_no_version_of_it_is_no_robots(
+    bridge: Bridge, make_robot
+) -> None:
+    """An unversioned robot is found on v3 topics, but only by messages that say they are 3.x."""
+    robot = make_robot()
+    bridge.directory.reload()
+    topic, _ = message(robot, Topic.STATE, robot_state(), "3.0.0")
+    _, payload_2 = message(robot, Topic.STATE, robot_state(), "2.0.0")
+
+    bridge.handle([(topic, payload_2)])
+
+    assert Robot.objects.get(name=robot.name).protocol_version == "2.0.0"
+    assert livestate.latest_state(robot.name).payload is None
