@@ -12,6 +12,7 @@ from pathlib import Path
 from simulator.config import (
     DEFAULT_INTERFACE_NAME,
     ROBOT_SPEC_FIELDS,
+    Credentials,
     RobotConfig,
     SimulationSettings,
     parse_credentials,
@@ -27,6 +28,28 @@ logger = logging.getLogger("simulator")
 
 DEFAULT_ROBOT = "carter01,0,0"
 PREFIX_LEVELS = 3  # interfaceName/majorVersion/manufacturer
+
+
+def add_broker_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the broker is and how to log in, for the simulator and `simulator.monitor` alike."""
+    parser.add_argument("--mqtt_host", default="localhost")
+    parser.add_argument("--mqtt_port", type=int, default=1883)
+    parser.add_argument("--mqtt_transport", choices=("tcp", "websockets"), default="tcp")
+    parser.add_argument(
+        "--mqtt_ws_path", default="/mqtt", help="websocket path (--mqtt_transport websockets)"
+    )
+    parser.add_argument("--mqtt_username", default=None, help="shared by every robot without credentials")
+    parser.add_argument("--mqtt_password", default=None)
+    parser.add_argument("--mqtt_tls", action="store_true", help="connect over TLS (wss with websockets)")
+    parser.add_argument("--mqtt_ca_file", default=None, help="CA certificate(s) (default: the system's)")
+    parser.add_argument(
+        "--mqtt_no_check_hostname",
+        dest="mqtt_check_hostname",
+        action="store_false",
+        help="accept a broker certificate issued for another host name",
+    )
+    parser.add_argument("--mqtt_cert_file", default=None, help="client certificate, if the broker wants one")
+    parser.add_argument("--mqtt_key_file", default=None, help="its private key (default: in the cert file)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -73,14 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="topic prefix interfaceName/majorVersion/manufacturer, e.g. uagv/v2/RobotCompany;"
         " overrides --interface_name and the robots' manufacturers in topics",
     )
-    parser.add_argument("--mqtt_host", default="localhost")
-    parser.add_argument("--mqtt_port", type=int, default=1883)
-    parser.add_argument("--mqtt_transport", choices=("tcp", "websockets"), default="tcp")
-    parser.add_argument(
-        "--mqtt_ws_path", default="/mqtt", help="websocket path (--mqtt_transport websockets)"
-    )
-    parser.add_argument("--mqtt_username", default=None, help="shared by every robot without credentials")
-    parser.add_argument("--mqtt_password", default=None)
+    add_broker_arguments(parser)
     parser.add_argument(
         "--mqtt_credentials",
         type=Path,
@@ -88,16 +104,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="each robot's own login: lines 'serial_number username password' (deploy/mosquitto/add-robot)",
     )
-    parser.add_argument("--mqtt_tls", action="store_true", help="connect over TLS (wss with websockets)")
-    parser.add_argument("--mqtt_ca_file", default=None, help="CA certificate(s) (default: the system's)")
-    parser.add_argument(
-        "--mqtt_no_check_hostname",
-        dest="mqtt_check_hostname",
-        action="store_false",
-        help="accept a broker certificate issued for another host name",
-    )
-    parser.add_argument("--mqtt_cert_file", default=None, help="client certificate, if the broker wants one")
-    parser.add_argument("--mqtt_key_file", default=None, help="its private key (default: in the cert file)")
     parser.add_argument("--log_level", choices=("DEBUG", "INFO", "WARNING", "ERROR"), default="INFO")
     return parser
 
@@ -122,6 +128,13 @@ def broker_settings(
         missing = [address.serial_number for _, address in fleet if address.serial_number not in credentials]
         if missing:
             raise ValueError(f"{args.mqtt_credentials} has no credentials for {', '.join(missing)}")
+    return shared_broker_settings(args, credentials)
+
+
+def shared_broker_settings(
+    args: argparse.Namespace, credentials: dict[str, Credentials] | None = None
+) -> BrokerSettings:
+    """The options of `add_broker_arguments` as settings, checked."""
     tls_files = (args.mqtt_ca_file, args.mqtt_cert_file, args.mqtt_key_file)
     if not args.mqtt_tls and (any(tls_files) or not args.mqtt_check_hostname):
         raise ValueError("the --mqtt_*_file options and --mqtt_no_check_hostname need --mqtt_tls")
@@ -132,7 +145,7 @@ def broker_settings(
         ws_path=args.mqtt_ws_path,
         username=args.mqtt_username,
         password=args.mqtt_password,
-        credentials=credentials,
+        credentials=credentials or {},
         tls=args.mqtt_tls,
         ca_file=args.mqtt_ca_file,
         check_hostname=args.mqtt_check_hostname,

@@ -17,6 +17,8 @@ import orjson
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 
+from simulator.cli import add_broker_arguments, shared_broker_settings
+from simulator.runner import BrokerSettings
 from vda5050.topics import SINGLE_LEVEL_WILDCARD, Topic
 
 
@@ -61,7 +63,7 @@ class FleetTraffic:
         )
 
 
-def watch(host: str, port: int, interface_name: str, seconds: float) -> FleetTraffic:
+def watch(broker: BrokerSettings, interface_name: str, seconds: float) -> FleetTraffic:
     traffic = FleetTraffic()
 
     def on_message(client: mqtt.Client, userdata: object, message: mqtt.MQTTMessage) -> None:
@@ -75,9 +77,16 @@ def watch(host: str, port: int, interface_name: str, seconds: float) -> FleetTra
             with traffic.lock:
                 traffic.connection_states[serial] = body["connectionState"]
 
-    client = mqtt.Client(CallbackAPIVersion.VERSION2)
+    client = mqtt.Client(CallbackAPIVersion.VERSION2, transport=broker.transport)
+    if broker.transport == "websockets":
+        client.ws_set_options(path=broker.ws_path)
+    if broker.username is not None:  # with the shipped ACL, the dispatcher's login reads every robot
+        client.username_pw_set(broker.username, broker.password)
+    tls = broker.tls_context()
+    if tls is not None:
+        client.tls_set_context(tls)
     client.on_message = on_message
-    client.connect(host, port)
+    client.connect(broker.host, broker.port)
     levels = (interface_name, SINGLE_LEVEL_WILDCARD, SINGLE_LEVEL_WILDCARD, SINGLE_LEVEL_WILDCARD)
     client.subscribe([("/".join((*levels, topic)), 0) for topic in (Topic.STATE, Topic.CONNECTION)])
     client.loop_start()
@@ -89,12 +98,15 @@ def watch(host: str, port: int, interface_name: str, seconds: float) -> FleetTra
 
 def main() -> None:
     parser = argparse.ArgumentParser(prog="python -m simulator.monitor", description=__doc__)
-    parser.add_argument("--mqtt_host", default="localhost")
-    parser.add_argument("--mqtt_port", type=int, default=1883)
+    add_broker_arguments(parser)
     parser.add_argument("--interface_name", default="+", help="first topic level to watch (default: all)")
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
-    traffic = watch(args.mqtt_host, args.mqtt_port, args.interface_name, args.seconds)
+    try:
+        broker = shared_broker_settings(args)
+    except ValueError as error:
+        parser.error(str(error))
+    traffic = watch(broker, args.interface_name, args.seconds)
     print(traffic.report(args.seconds))
 
 

@@ -6,19 +6,24 @@ allowed message sent after it does."""
 
 from __future__ import annotations
 
+import argparse
 import ssl
 import threading
+import time
 import uuid
 from collections.abc import Iterator
 from typing import Any
 
+import orjson
 import paho.mqtt.client as mqtt
 import pytest
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 from pytest_django.fixtures import Settings
 
+from simulator.cli import add_broker_arguments, shared_broker_settings
+from simulator.monitor import FleetTraffic, watch
 from simulator.runner import BrokerSettings
-from tests.security.broker import HOST, SecuredBroker
+from tests.security.broker import DISPATCHER, HOST, SecuredBroker
 from tests.security.conftest import as_dispatcher, private_secured_broker
 from tests.waiting import wait_for
 from tests.workers.subscriber import subscribed
@@ -101,9 +106,7 @@ class Robot:
 def robots(secured_broker: SecuredBroker) -> Iterator[list[Robot]]:
     """Two robots connected with their own logins."""
     serials = [secured_broker.serial_number(base) for base in ("robot-a", "robot-b")]
-    connected = [
-        Robot(secured_broker, serial, secured_broker.robots[serial].password) for serial in serials
-    ]
+    connected = [Robot(secured_broker, serial, secured_broker.robots[serial].password) for serial in serials]
     for robot in connected:
         assert not robot.connect().is_failure
     yield connected
@@ -214,3 +217,32 @@ def test_a_client_certificate_goes_along_when_configured(
         finally:
             with_certificate.disconnect()
             with_certificate.loop_stop()
+
+
+def test_the_traffic_monitor_watches_every_robot_over_tls_with_the_dispatchers_login(
+    secured_broker: SecuredBroker, robots: list[Robot]
+) -> None:
+    args = argparse.ArgumentParser()
+    add_broker_arguments(args)
+    options = args.parse_args(
+        [
+            *("--mqtt_host", HOST, "--mqtt_port", str(secured_broker.port), "--mqtt_tls"),
+            *("--mqtt_ca_file", str(secured_broker.certificates.ca)),
+            *("--mqtt_username", DISPATCHER, "--mqtt_password", secured_broker.dispatcher_password),
+        ]
+    )
+    robot, other = robots
+    watched: list[FleetTraffic] = []
+    broker = shared_broker_settings(options)
+    watcher = threading.Thread(target=lambda: watched.append(watch(broker, "uagv", seconds=6.0)))
+    watcher.start()
+    for header_id in range(1, 21):  # over 4 s: the monitor connects meanwhile and sees the later ones
+        robot.publish(topic(robot.serial, "state"), orjson.dumps({"headerId": header_id}))
+        other.publish(topic(other.serial, "state"), orjson.dumps({"headerId": header_id}))
+        time.sleep(0.2)
+    watcher.join()
+
+    traffic = watched[0].robots
+    for serial in (robot.serial, other.serial):
+        assert traffic[serial].states >= 5
+        assert traffic[serial].skipped_header_ids == 0
