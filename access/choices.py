@@ -25,6 +25,7 @@ class WriteAction(models.TextChoices):
     ROBOT_UPDATE = "robot_update"
     ROBOT_DELETE = "robot_delete"
     ROBOT_TELEOP = "robot_teleop"
+    ROBOT_MAP = "robot_map"
     MISSION_CREATE = "mission_create"
     MISSION_CANCEL = "mission_cancel"
     MISSION_UPDATE = "mission_update"

@@ -17,7 +17,7 @@ from typing import Any
 
 from missions import engine
 from missions.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
-from vda5050 import compat, orders
+from vda5050 import compat, maps, orders
 from vda5050 import state as vda_state
 from vda5050.codec import ACTIONS_KEY, LEGACY_INSTANT_ACTIONS_KEY
 from vda5050.models import (
@@ -102,6 +102,7 @@ class ActionRecord:
     status: str | None
     sent_at: datetime | None
     send_count: int = 0
+    parameters: dict[str, Any] | None = None  # its actionParameters as a mapping (map actions have some)
 
 
 @dataclass(frozen=True)
@@ -233,7 +234,9 @@ def _send_instant_actions(
     for action in due:
         action.sent_at = now
         action.send_count += 1
-    content = orders.instant_actions(orders.instant_action(a.action_type, a.action_id) for a in due)
+    content = orders.instant_actions(
+        orders.instant_action(a.action_type, a.action_id, a.parameters) for a in due
+    )
     result.messages.append(Outgoing(content))
 
 
@@ -289,7 +292,7 @@ def _try_start(
             category=FailureCategory.DEADLINE,
         )
         return
-    reason = _why_not_start(result, robot, state)
+    reason = _why_not_start(result, robot, state) or _maps_missing(state, mission)
     if reason is not None:
         mission.waiting_reason = reason
         return
@@ -325,6 +328,28 @@ def _why_not_start(result: StepResult, robot: RobotView, state: State | None) ->
     if not vda_state.is_idle(state):
         return "Robot is busy with an earlier order"
     return None
+
+
+def _maps_missing(state: State | None, mission: MissionRecord) -> str | None:
+    """Why a mission waits for maps: its route waypoints name a map the robot reports no ENABLED version
+    of (a robot that reports no maps at all is not held, `vda5050.maps.enabled_map_ids`). A tree that does
+    not parse is the step's to fail, not this check's."""
+    if state is None:
+        return None
+    try:
+        tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
+    except engine.TreeError:
+        return None
+    return _maps_missing_for(state, [node for node in tree.nodes if node.kind == NodeKind.ROUTE])
+
+
+def _maps_missing_for(state: State, leaves: list[engine.Node]) -> str | None:
+    missing = maps.maps_not_enabled(
+        state, [map_id for leaf in leaves for map_id in maps.waypoint_map_ids(leaf.params["waypoints"])]
+    )
+    if not missing:
+        return None
+    return f"Waiting for map {', '.join(missing)} to be enabled on the robot"
 
 
 # --- advancing a running mission ----------------------------------------------------------------------
@@ -587,6 +612,11 @@ def _tick(
         return  # the order waits until the robot can take it
     if _pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return
+    if leaf.kind == NodeKind.ROUTE:
+        # A map disabled or deleted since the mission started, or named by a route update: the leaf waits.
+        mission.waiting_reason = _maps_missing_for(state, [leaf])
+        if mission.waiting_reason is not None:
+            return
     pose = vda_state.robot_telemetry(state).pose
     if pose is None:
         _leaf_failed(mission, leaf, "Robot does not report its position")
@@ -737,8 +767,8 @@ class StateDigest:
 
     `full` changes with anything a step reads. `events` with what needs a step whatever order the robot
     holds: finished and started actions, errors, operating mode, charging, battery in whole percent,
-    pause. Pose and other high-rate fields are left out of both on purpose: a moving robot must not cost a
-    step per state message. Battery counts in whole percent because it gates queued missions at the
+    pause, maps. Pose and other high-rate fields are left out of both on purpose: a moving robot must not
+    cost a step per state message. Battery counts in whole percent because it gates queued missions at the
     critical level.
     """
 
@@ -774,6 +804,8 @@ def state_digest(state: State) -> StateDigest:
         str(state.battery_state.charging),
         str(int(state.battery_state.battery_charge)),
         str(state.paused),
+        # A map enabled (or gone) starts or holds a mission that names it.
+        ",".join(f"{m.map_id}/{m.map_version}/{m.map_status.value}" for m in state.maps or ()),
     ]
     return StateDigest(
         full="|".join(progress + events),

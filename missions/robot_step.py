@@ -460,10 +460,10 @@ def _action_record(action: InstantAction) -> dispatch.ActionRecord:
 # which `pipelined_transaction` does not allow.
 UPSERT_ACTIONS_SQL = f"""
     INSERT INTO {InstantAction._meta.db_table}
-        (action_id, robot_id, action_type, mission, status, sent_at, send_count, created_at)
+        (action_id, robot_id, action_type, mission, status, sent_at, send_count, parameters, created_at)
     SELECT *, %s FROM unnest(
         %s::varchar[], %s::varchar[], %s::varchar[], %s::varchar[], %s::varchar[], %s::timestamptz[],
-        %s::integer[]
+        %s::integer[], %s::jsonb[]
     )
     ON CONFLICT (action_id) DO UPDATE
     SET status = EXCLUDED.status, sent_at = EXCLUDED.sent_at, send_count = EXCLUDED.send_count
@@ -490,5 +490,6 @@ def _store_actions(
                 [a.status for a in changed],
                 [a.sent_at for a in changed],
                 [a.send_count for a in changed],
+                [None if a.parameters is None else jsonb(a.parameters) for a in changed],
             ],
         )

@@ -10,12 +10,15 @@ from django.contrib.admin.utils import flatten_fieldsets, model_ngettext
 from django.db.models import Model, QuerySet
 from django.forms.models import model_to_dict
 from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
+from django.utils.html import format_html, format_html_join
+from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
 from fleet.api import UsageError, object_name_validator
 from robots.api.serializers import RobotSpecSerializer, RobotVda5050Serializer
 from robots.choices import SettingSource, TeleopAction
 from robots.models import Robot
+from robots.selectors import robot_map_actions
 from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
 
 BATTERY_FIELDS = ("battery_critical_level", "battery_recommended_minimum", "battery_recommended_maximum")
@@ -184,6 +187,7 @@ class RobotAdmin(admin.ModelAdmin):
         ("Spec", {"fields": ("labels", BATTERY_FIELDS, "heartbeat_timeout", "switch_teleop")}),
         ("Status", {"fields": STATUS_FIELDS}),
         ("VDA 5050 identity", {"fields": IDENTITY_FIELDS}),
+        ("Maps", {"fields": ("maps_reported", "map_actions")}),
         ("Factsheet", {"classes": ("collapse",), "fields": ("factsheet",)}),
         ("Timestamps", {"fields": ("created_at", "updated_at")}),
     )
@@ -202,6 +206,49 @@ class RobotAdmin(admin.ModelAdmin):
     def pose(self, robot: Robot) -> str:
         where = f" @ {robot.pose_map_id}" if robot.pose_map_id else ""
         return f"({robot.pose_x:.2f}, {robot.pose_y:.2f}, {robot.pose_theta:.2f}){where}"
+
+    @admin.display(description="maps")
+    def maps_reported(self, robot: Robot) -> SafeString | str:
+        """What the robot reports (VDA 5050 2.1+ state.maps)."""
+        if not robot.maps:
+            return "none reported"
+        rows = format_html_join(
+            "",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            (
+                (m["map_id"], m["map_version"], m["map_status"], m["map_description"] or "")
+                for m in robot.maps
+            ),
+        )
+        return format_html(
+            "<table><tr><th>map_id</th><th>map_version</th><th>map_status</th><th>map_description</th></tr>"
+            "{}</table>",
+            rows,
+        )
+
+    @admin.display(description="map actions")
+    def map_actions(self, robot: Robot) -> SafeString | str:
+        """downloadMap, enableMap and deleteMap asked through the API, newest first, as the robot reported
+        them."""
+        actions = list(robot_map_actions(robot=robot))
+        if not actions:
+            return "none"
+        rows = format_html_join(
+            "",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            (
+                (
+                    a.created_at,
+                    a.action_type,
+                    ", ".join(f"{k}={v}" for k, v in (a.parameters or {}).items()),
+                    a.status or "not reported yet",
+                )
+                for a in actions
+            ),
+        )
+        return format_html(
+            "<table><tr><th>asked</th><th>action</th><th>parameters</th><th>status</th></tr>{}</table>", rows
+        )
 
     def changeform_view(
         self,

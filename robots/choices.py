@@ -18,6 +18,15 @@ class TeleopAction(models.TextChoices):
     STOP = "STOP"
 
 
+class MapAction(models.TextChoices):
+    """What an operator may ask a robot to do with a map (VDA 5050 2.1+ instant actions, values as spelled
+    on the wire)."""
+
+    DOWNLOAD = "downloadMap", "downloadMap"
+    ENABLE = "enableMap", "enableMap"
+    DELETE = "deleteMap", "deleteMap"
+
+
 class AgvClass(models.TextChoices):
     """VDA 5050 factsheet `typeSpecification.agvClass`, filtered on as `robot_type`."""
 

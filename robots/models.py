@@ -78,6 +78,12 @@ class Robot(models.Model):
     )
     info_messages = models.JSONField(null=True, blank=True)
     errors = models.JSONField(default=dict, blank=True)
+    maps = models.JSONField(
+        default=list,
+        blank=True,
+        help_text="The maps the robot reports (VDA 5050 2.1+ state.maps): map_id, map_version, map_status, "
+        "map_description.",
+    )
     last_state_at = models.DateTimeField(null=True, blank=True)
 
     created_at = models.DateTimeField(auto_now_add=True)
@@ -111,6 +117,9 @@ class InstantAction(models.Model):
     mission = models.CharField(max_length=100, null=True, blank=True, help_text="Mission it was sent for.")
     status = models.CharField(
         max_length=20, null=True, blank=True, help_text="Last status the robot reported; empty until it does."
+    )
+    parameters = models.JSONField(
+        null=True, blank=True, help_text="Its actionParameters as a mapping (a map action's mapId, ...)."
     )
     sent_at = models.DateTimeField(null=True, blank=True, help_text="Empty until it is first sent.")
     send_count = models.IntegerField(default=0)

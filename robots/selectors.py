@@ -6,6 +6,7 @@ from typing import Any
 from django.db.models import OuterRef, QuerySet
 
 from fleet.api import QueryValidationError, object_get
+from robots.choices import MapAction
 from robots.filters import RobotFilter
 from robots.models import InstantAction, Robot
 from vda5050.state import FINAL_ACTION_STATUSES
@@ -31,3 +32,8 @@ def robot_unfinished_instant_actions(*, robot: Robot | str | OuterRef) -> QueryS
         .exclude(status__in=sorted(FINAL_ACTION_STATUSES))
         .order_by("created_at")
     )
+
+
+def robot_map_actions(*, robot: Robot) -> QuerySet[InstantAction]:
+    """The map actions asked of the robot, newest first, finished or not."""
+    return InstantAction.objects.filter(robot=robot, action_type__in=MapAction.values).order_by("-created_at")

@@ -15,8 +15,10 @@ from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
 from fleet.wake import wake_robot
 from missions.choices import MissionState
 from missions.models import Mission
-from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, SettingSource, TeleopAction
+from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, MapAction, SettingSource, TeleopAction
 from robots.models import InstantAction, Robot
+from vda5050.errors import ProtocolError
+from vda5050.maps import has_maps, map_action_parameters
 from vda5050.models import ActionType
 from vda5050.orders import new_action_id
 
@@ -120,16 +122,56 @@ def robot_teleop(*, actor: str, robot: Robot, action: TeleopAction) -> Robot:
     return locked
 
 
-def _queue_instant_action(robot: Robot, action_type: str) -> InstantAction:
+def robot_map_action(
+    *,
+    actor: str,
+    robot: Robot,
+    action: MapAction,
+    map_id: str,
+    map_version: str,
+    map_download_link: str | None = None,
+    map_hash: str | None = None,
+) -> InstantAction:
+    """Ask the robot to download, enable or delete a map: an instant action its next step sends and
+    tracks until the robot reports it FINISHED or FAILED. Only robots of VDA 5050 2.1 and later have maps."""
+    with transaction.atomic():
+        locked = lock_row(robot)
+        if not has_maps(locked.protocol_version):
+            raise UsageError(
+                f"Robot {locked.name} speaks VDA 5050 {locked.protocol_version}, which has no map actions "
+                "(maps came with 2.1.0)."
+            )
+        try:
+            parameters = map_action_parameters(
+                action,
+                map_id=map_id,
+                map_version=map_version,
+                map_download_link=map_download_link,
+                map_hash=map_hash,
+            )
+        except ProtocolError as error:
+            raise UsageError(error.reason) from error
+        queued = _queue_instant_action(locked, action, parameters)
+        write_record(actor=actor, action=WriteAction.ROBOT_MAP, object_name=locked.name)
+        wake_robot(locked.name)
+    return queued
+
+
+def _queue_instant_action(
+    robot: Robot, action_type: str, parameters: dict[str, Any] | None = None
+) -> InstantAction:
     """Put an instant action in the robot's outbox; the robot's next step sends it and tracks it."""
-    action = instant_action(robot.name, action_type)
+    action = instant_action(robot.name, action_type, parameters)
     action.save(force_insert=True)
     return action
 
 
-def instant_action(robot: str, action_type: str) -> InstantAction:
+def instant_action(robot: str, action_type: str, parameters: dict[str, Any] | None = None) -> InstantAction:
     return InstantAction(
-        action_id=new_action_id(f"{robot}-{action_type}"), robot_id=robot, action_type=action_type
+        action_id=new_action_id(f"{robot}-{action_type}"),
+        robot_id=robot,
+        action_type=action_type,
+        parameters=parameters,
     )
 
 

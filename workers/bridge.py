@@ -39,6 +39,7 @@ from robots.models import Robot
 from robots.status import robot_protocol_version_learn, robot_status_write, robots_came_online
 from vda5050.codec import nested_deeper, parse_connection, parse_factsheet, parse_state, parse_visualization
 from vda5050.errors import PayloadError, ProtocolError
+from vda5050.maps import reported_maps
 from vda5050.models import Connection, ConnectionState, Factsheet, State, Visualization
 from vda5050.topics import RobotIdentity, Topic, fleet_subscription, major_version_of, parse_topic
 from vda5050.topics import shared_subscription as shared_filter
@@ -81,8 +82,9 @@ STATUS_COLUMNS = (
     "hardware_version",
     "errors",
     "info_messages",
+    "maps",
 )
-JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages"})
+JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages", "maps"})
 
 
 class Drop(StrEnum):
@@ -529,6 +531,7 @@ class Bridge:
                 for error in state.errors
             },
             "info_messages": _user_info(state),
+            "maps": reported_maps(state),
         }
         if position is not None:
             values.update(

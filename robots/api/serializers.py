@@ -23,6 +23,7 @@ from robots.choices import (
     AgvClass,
     InstantActionsKey,
     Lifecycle,
+    MapAction,
     ProtocolVersion,
     RobotState,
     SettingSource,
@@ -128,6 +129,37 @@ class TeleopQuerySerializer(serializers.Serializer):
     params = serializers.ChoiceField(choices=TeleopAction.choices, help_text="START or STOP teleop.")
 
 
+class MapActionRequestSerializer(StrictSerializer):
+    """A map action for the robot (VDA 5050 2.1+): download a map version, enable it, or delete it."""
+
+    action = serializers.ChoiceField(
+        choices=MapAction.choices,
+        help_text="downloadMap (needs map_download_link), enableMap (other versions of the map_id are "
+        "disabled by the robot) or deleteMap.",
+    )
+    map_id = JsonStringField(help_text="The map's VDA 5050 mapId, as waypoints name it.")
+    map_version = JsonStringField(help_text="The map's version.")
+    map_download_link = JsonStringField(
+        required=False, help_text="downloadMap only, required: where the robot downloads the map from."
+    )
+    map_hash = JsonStringField(
+        required=False, help_text="downloadMap only, optional: hash the robot checks the download against."
+    )
+
+    def validate(self, attrs: dict) -> dict:
+        download = attrs["action"] == MapAction.DOWNLOAD
+        if download and "map_download_link" not in attrs:
+            raise serializers.ValidationError(
+                {"map_download_link": "downloadMap needs a map_download_link."}, code="missing"
+            )
+        extra = [key for key in ("map_download_link", "map_hash") if key in attrs]
+        if not download and extra:
+            raise serializers.ValidationError(
+                {key: f"Only downloadMap takes {key}." for key in extra}, code="extra_forbidden"
+            )
+        return attrs
+
+
 # --- what a client gets ---------------------------------------------------------------------------------
 
 
@@ -176,6 +208,41 @@ class FactsheetSerializer(serializers.Serializer):
     speed_max = serializers.FloatField(help_text="From the robot's factsheet; -1 until it has sent one.")
 
 
+class RobotMapSerializer(serializers.Serializer):
+    """A map the robot reports having (VDA 5050 2.1+ state.maps)."""
+
+    map_id = serializers.CharField()
+    map_version = serializers.CharField()
+    map_status = serializers.ChoiceField(
+        choices=["ENABLED", "DISABLED"], help_text="At most one version of a map_id is ENABLED."
+    )
+    map_description = serializers.CharField(allow_null=True)
+
+
+class MapActionSerializer(serializers.Serializer):
+    """A map action asked of the robot, tracked until the robot reports it FINISHED or FAILED."""
+
+    action_id = serializers.CharField(help_text="The VDA 5050 actionId the robot reports it by.")
+    action = serializers.ChoiceField(source="action_type", choices=MapAction.choices)
+    parameters = serializers.DictField(
+        child=serializers.CharField(), help_text="The actionParameters sent (mapId, mapVersion, ...)."
+    )
+    status = serializers.CharField(
+        allow_null=True,
+        help_text="The status the robot last reported (WAITING, INITIALIZING, RUNNING, FINISHED, FAILED, "
+        "...); null until it reports one.",
+    )
+    sent_at = serializers.DateTimeField(allow_null=True, help_text="null until it is first sent.")
+    created_at = serializers.DateTimeField()
+
+
+class RobotMapsSerializer(serializers.Serializer):
+    """The robot's maps and the map actions asked of it."""
+
+    maps = RobotMapSerializer(many=True)
+    actions = MapActionSerializer(many=True, help_text="Newest first.")
+
+
 class RobotStatusSerializer(serializers.Serializer):
     """What the robot reports, as the dispatch engine last recorded it."""
 
@@ -189,6 +256,9 @@ class RobotStatusSerializer(serializers.Serializer):
     state = serializers.ChoiceField(choices=RobotState.choices)
     info_messages = serializers.JSONField(allow_null=True)
     errors = serializers.JSONField()
+    maps = RobotMapSerializer(
+        many=True, help_text="The maps the robot reports (VDA 5050 2.1+); empty if it reports none."
+    )
 
     @extend_schema_field(Pose2DSerializer)
     def get_pose(self, robot: Robot) -> dict[str, Any]:

@@ -8,18 +8,27 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 
 from access.authentication import request_actor
-from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, QueryValidationError, bad_request
+from fleet.api import (
+    DETAIL_RESPONSE,
+    SCHEMA_ERROR_EXAMPLE,
+    QueryValidationError,
+    bad_request,
+    body_validated,
+)
 from robots.api.serializers import (
+    MapActionRequestSerializer,
+    MapActionSerializer,
     RobotCreateSerializer,
+    RobotMapsSerializer,
     RobotSerializer,
     RobotSpecSerializer,
     TeleopQuerySerializer,
 )
-from robots.choices import TeleopAction
+from robots.choices import MapAction, TeleopAction
 from robots.filters import RobotFilter
 from robots.models import Robot
-from robots.selectors import robot_get, robot_list
-from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
+from robots.selectors import robot_get, robot_list, robot_map_actions
+from robots.services import robot_create, robot_delete, robot_map_action, robot_teleop, robot_update_spec
 
 README_ROBOT = {"labels": [], "battery": {"critical_level": 0.1}, "heartbeat_timeout": 30, "name": "carter01"}
 ROBOT_EXAMPLE = OpenApiExample(
@@ -59,6 +68,7 @@ ROBOT_EXAMPLE = OpenApiExample(
             "state": "IDLE",
             "info_messages": None,
             "errors": {},
+            "maps": [],
         },
         "lifecycle": "ALIVE",
     },
@@ -68,6 +78,30 @@ NOT_FOUND_EXAMPLE = OpenApiExample(
 )
 NOT_FOUND_TO_CHANGE_EXAMPLE = OpenApiExample(
     "Robot not found", value={"detail": "Could not find object carter99"}, status_codes=["400"]
+)
+MAP_ACTION_EXAMPLE = OpenApiExample(
+    "downloadMap",
+    response_only=True,
+    value={
+        "action_id": "carter01-downloadMap-0b7e4a52-7d0e-4f4a-9c56-3f1f0c1d2e11",
+        "action": "downloadMap",
+        "parameters": {
+            "mapId": "warehouse",
+            "mapVersion": "2",
+            "mapDownloadLink": "https://maps.example/warehouse/2",
+        },
+        "status": None,
+        "sent_at": None,
+        "created_at": "2026-11-26T15:00:00Z",
+    },
+)
+NO_MAPS_EXAMPLE = OpenApiExample(
+    "VDA 5050 2.0 robot",
+    value={
+        "message": "Robot carter01 speaks VDA 5050 2.0.0, which has no map actions (maps came with 2.1.0).",
+        "error_code": "USAGE",
+    },
+    status_codes=["400"],
 )
 DELETED_EXAMPLE = OpenApiExample("Deleted", value={"detail": "carter01 is PENDING_DELETE"})
 
@@ -207,3 +241,85 @@ class RobotViewSet(viewsets.GenericViewSet):
         teleop_action = TeleopAction(query.validated_data["params"])
         robot_teleop(actor=request_actor(request), robot=robot_get(name=name), action=teleop_action)
         return Response(f"{teleop_action} teleop action received.")
+
+    @extend_schema(
+        methods=["GET"],
+        operation_id="robot_maps",
+        summary="A robot's maps and map actions",
+        description=(
+            "The maps the robot reports (VDA 5050 2.1+ state.maps) and the map actions asked of it, newest "
+            "first, each with the status the robot last reported."
+        ),
+        responses={200: RobotMapsSerializer, 400: bad_request(NOT_FOUND_EXAMPLE)},
+        examples=[
+            OpenApiExample(
+                "A map downloaded and enabled",
+                response_only=True,
+                value={
+                    "maps": [
+                        {
+                            "map_id": "warehouse",
+                            "map_version": "2",
+                            "map_status": "ENABLED",
+                            "map_description": None,
+                        }
+                    ],
+                    "actions": [{**MAP_ACTION_EXAMPLE.value, "status": "FINISHED"}],
+                },
+            )
+        ],
+        filters=False,
+    )
+    @extend_schema(
+        methods=["POST"],
+        operation_id="robot_map_action",
+        summary="Download, enable or delete a map",
+        description=(
+            "Asks the robot (VDA 5050 2.1 or later) to download a map version (downloadMap), enable it "
+            "(enableMap) or delete it (deleteMap). The dispatch engine sends it as an instant action and "
+            "tracks it until the robot reports it FINISHED or FAILED (GET /robot/{name}/map). A mission "
+            "whose waypoints name a map the robot does not report ENABLED waits for it."
+        ),
+        request=MapActionRequestSerializer,
+        responses={
+            200: MapActionSerializer,
+            400: bad_request(NOT_FOUND_EXAMPLE, NO_MAPS_EXAMPLE, SCHEMA_ERROR_EXAMPLE),
+        },
+        examples=[
+            OpenApiExample(
+                "Download",
+                request_only=True,
+                value={
+                    "action": "downloadMap",
+                    "map_id": "warehouse",
+                    "map_version": "2",
+                    "map_download_link": "https://maps.example/warehouse/2",
+                },
+            ),
+            OpenApiExample(
+                "Enable",
+                request_only=True,
+                value={"action": "enableMap", "map_id": "warehouse", "map_version": "2"},
+            ),
+            MAP_ACTION_EXAMPLE,
+        ],
+        filters=False,
+    )
+    @action(detail=True, methods=["get", "post"], url_path="map")
+    def map(self, request: Request, name: str) -> Response:
+        robot = robot_get(name=name)
+        if request.method == "GET":
+            return Response(
+                RobotMapsSerializer({"maps": robot.maps, "actions": robot_map_actions(robot=robot)}).data
+            )
+        body = body_validated(MapActionRequestSerializer, request.data)
+        queued = robot_map_action(
+            actor=request_actor(request),
+            robot=robot,
+            action=MapAction(body["action"]),
+            map_id=body["map_id"],
+            map_version=body["map_version"],
+            map_download_link=body.get("map_download_link"),
+            map_hash=body.get("map_hash"),
+        )
+        return Response(MapActionSerializer(queued).data)

@@ -31,13 +31,14 @@ WRITE_BODIES = {
     "PUT /robot/acc1": {"heartbeat_timeout": 10},
     "POST /mission": {"name": "acc2", "robot": NAME, "mission_tree": [{"name": "c", "constant": {}}]},
     "POST /mission/acc1/update": {},
+    "POST /robot/acc1/map": {"action": "enableMap", "map_id": "warehouse", "map_version": "1"},
 }
 WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 
 
 @pytest.fixture(autouse=True)
 def objects() -> None:
-    RobotFactory(name=NAME)
+    RobotFactory(name=NAME, protocol_version="2.1.0")  # a robot with maps
     MissionFactory(name=NAME, robot=NAME)
 
 
@@ -60,6 +61,8 @@ def test_the_walk_finds_every_endpoint_of_the_reference_and_ours():
         "POST /robot",
         "PUT /robot/acc1",
         "POST /robot/acc1/teleop",
+        "GET /robot/acc1/map",
+        "POST /robot/acc1/map",
         "POST /mission/acc1/cancel",
         "POST /mission/acc1/update",
         "DELETE /mission/acc1",

@@ -17,8 +17,19 @@ TREE = [{"name": "go", "route": {"waypoints": [{"x": 1, "y": 2}]}}]
 # (method, path, body, the record it leaves), in an order that each write finds what it needs.
 WRITES = [
     ("post", "/robot", {"name": "r1"}, (WriteAction.ROBOT_CREATE, "r1")),
-    ("put", "/robot/r1", {"heartbeat_timeout": 5}, (WriteAction.ROBOT_UPDATE, "r1")),
+    (
+        "put",
+        "/robot/r1",
+        {"heartbeat_timeout": 5, "vda5050": {"version": "2.1.0"}},
+        (WriteAction.ROBOT_UPDATE, "r1"),
+    ),
     ("post", "/robot/r1/teleop?params=STOP", None, (WriteAction.ROBOT_TELEOP, "r1")),
+    (
+        "post",
+        "/robot/r1/map",
+        {"action": "deleteMap", "map_id": "warehouse", "map_version": "1"},
+        (WriteAction.ROBOT_MAP, "r1"),
+    ),
     (
         "post",
         "/mission",

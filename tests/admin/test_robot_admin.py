@@ -10,8 +10,9 @@ from django.test import Client
 from django.urls import reverse
 
 from robots.admin import EDITABLE_SPEC_FIELDS
-from robots.choices import Lifecycle, RobotState
+from robots.choices import Lifecycle, MapAction, RobotState
 from robots.models import Robot
+from robots.services import robot_map_action
 from tests.factories import MissionFactory, RobotFactory
 
 pytestmark = pytest.mark.django_db
@@ -238,3 +239,17 @@ def test_an_admin_save_keeps_what_the_robot_taught(admin_client: Client, woken: 
     assert (robot.protocol_version, robot.protocol_version_source) == ("3.0.0", "LEARNED")
     assert (robot.instant_actions_key, robot.instant_actions_key_source) == ("instantActions", "LEARNED")
     assert [rule["rule"] for rule in robot.compatibility_rules] == ["legacy_instant_actions_key"]
+
+
+def test_the_change_page_shows_the_reported_maps_and_the_map_actions(admin_client: Client):
+    robot = RobotFactory(
+        name="carter01",
+        protocol_version="2.1.0",
+        maps=[{"map_id": "hall", "map_version": "2", "map_status": "ENABLED", "map_description": "ground"}],
+    )
+    robot_map_action(actor="test", robot=robot, action=MapAction.DELETE, map_id="yard", map_version="1")
+
+    content = admin_client.get(change_url(robot)).content.decode()
+
+    assert "<td>hall</td><td>2</td><td>ENABLED</td><td>ground</td>" in content
+    assert "<td>deleteMap</td><td>mapId=yard, mapVersion=1</td><td>not reported yet</td>" in content

@@ -18,6 +18,7 @@ ENDPOINTS = {
     "/robot": {"get", "post"},
     "/robot/{name}": {"get", "put", "delete"},
     "/robot/{name}/teleop": {"post"},
+    "/robot/{name}/map": {"get", "post"},
     "/mission": {"get", "post"},
     "/mission/{name}": {"get", "delete"},
     "/mission/{name}/cancel": {"post"},

@@ -52,6 +52,7 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "state": "IDLE",
             "info_messages": None,
             "errors": {},
+            "maps": [],
         },
         "lifecycle": "ALIVE",
     }

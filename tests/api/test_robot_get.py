@@ -23,6 +23,7 @@ def test_returns_the_robot_with_its_status(api):
         speed_max=1.5,
         info_messages={"info": "charging soon"},
         position_initialized=True,
+        maps=[{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
     )
 
     response = api.get("/robot/carter01")
@@ -46,6 +47,7 @@ def test_returns_the_robot_with_its_status(api):
         "state": "ON_TASK",
         "info_messages": {"info": "charging soon"},
         "errors": {},
+        "maps": [{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
     }
 
 
