@@ -14,6 +14,7 @@ from typing import Any
 from vda5050.models import Action, ActionScope, ActionType, ValueDataType
 
 LOAD_MAP_SECONDS = 1.0
+DOWNLOAD_MAP_SECONDS = 1.0  # a downloadMap is RUNNING this long, then the map is there, DISABLED
 PICK_DROP_SECONDS = 1.0
 
 
@@ -82,6 +83,35 @@ ACTION_SPECS: tuple[ActionSpec, ...] = (
     ActionSpec(ActionType.START_TELEOP, "Hands the robot to teleoperation: no driving.", INSTANT_SCOPE),
     ActionSpec(
         ActionType.STOP_TELEOP, "Ends teleoperation and finishes a running pause_order.", INSTANT_SCOPE
+    ),
+    ActionSpec(
+        ActionType.DOWNLOAD_MAP,
+        "Downloads a map version (takes 1 s); it is then reported DISABLED. A version the robot has fails.",
+        INSTANT_SCOPE,
+        (
+            ParameterSpec("mapId", ValueDataType.STRING, "the map"),
+            ParameterSpec("mapVersion", ValueDataType.STRING, "its version"),
+            ParameterSpec("mapDownloadLink", ValueDataType.STRING, "where to download it (not fetched)"),
+            ParameterSpec("mapHash", ValueDataType.STRING, "hash of the download", is_optional=True),
+        ),
+    ),
+    ActionSpec(
+        ActionType.ENABLE_MAP,
+        "Enables a map version the robot has; the other versions of its mapId are disabled.",
+        INSTANT_SCOPE,
+        (
+            ParameterSpec("mapId", ValueDataType.STRING, "the map"),
+            ParameterSpec("mapVersion", ValueDataType.STRING, "its version"),
+        ),
+    ),
+    ActionSpec(
+        ActionType.DELETE_MAP,
+        "Deletes a map version the robot has.",
+        INSTANT_SCOPE,
+        (
+            ParameterSpec("mapId", ValueDataType.STRING, "the map"),
+            ParameterSpec("mapVersion", ValueDataType.STRING, "its version"),
+        ),
     ),
     ActionSpec(
         ActionType.INIT_POSITION,

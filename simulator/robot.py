@@ -22,6 +22,7 @@ from typing import Any
 import orjson
 
 from simulator.actions import (
+    DOWNLOAD_MAP_SECONDS,
     ActionPlan,
     ClearLoads,
     Effect,
@@ -80,6 +81,9 @@ ORDER_ERROR = "orderError"
 ORDER_UPDATE_ERROR = "orderUpdateError"
 NO_ORDER_TO_CANCEL = "noOrderToCancel"
 ACTION_ERROR = "actionError"
+# 2.1 names no error types for maps (vendor-specific); 3.0 does (ERROR_TYPES_3).
+DUPLICATE_MAP = "duplicateMap"
+UNKNOWN_MAP = "unknownMap"
 SIMULATED_FAILURE = "simulatedFailure"
 # 3.0 renamed the predefined ones (UPPER_SNAKE); a 3.0 robot reports those names.
 ERROR_TYPES_3 = {
@@ -87,6 +91,8 @@ ERROR_TYPES_3 = {
     ORDER_ERROR: "INVALID_ORDER_ACTION",
     ORDER_UPDATE_ERROR: "OUTDATED_ORDER_UPDATE",
     NO_ORDER_TO_CANCEL: "NO_ORDER_TO_CANCEL",
+    DUPLICATE_MAP: "DUPLICATE_MAP",
+    UNKNOWN_MAP: "UNKNOWN_MAP_ID",
 }
 # What vda-5050-lib 1.4.0 reports for instant actions without the 1.1 key (Stack.VDA_5050_LIB_1_4).
 LIB_1_4_KEY_REJECTION = (
@@ -166,11 +172,15 @@ class SimulatedRobot:
         self.settings = settings
         self.version = config.vda_version or settings.version
         self.is_3 = major_of(self.version) >= MAJOR_3
+        self.has_maps = self.version != V2_0  # maps came with 2.1
         # who the robot is in message headers (the interface name is not part of a header)
         self.address = RobotAddress(DEFAULT_INTERFACE_NAME, config.manufacturer, config.serial, self.version)
         self.topic_address = topic_address or self.address
         self._pose = Pose(config.x, config.y, normalize_angle(config.theta))
         self._map_id = config.map_id
+        # The maps the robot has (2.1+): mapId -> {mapVersion: status}; it starts with its map enabled.
+        self._maps: dict[str, dict[str, MapStatus]] = {config.map_id: {MAP_VERSION: MapStatus.ENABLED}}
+        self._downloads: list[tuple[ActionRecord, float]] = []  # (downloadMap, when it is done)
         self._velocity = (0.0, 0.0, 0.0)
         self._driving = False
         self._paused = False
@@ -241,8 +251,12 @@ class SimulatedRobot:
         """What the next state message will say (without header)."""
         return StateContent(
             maps=(
-                [Map(map_id=self._map_id, map_version=MAP_VERSION, map_status=MapStatus.ENABLED)]
-                if self.version != V2_0
+                [
+                    Map(map_id=map_id, map_version=version, map_status=status)
+                    for map_id, versions in self._maps.items()
+                    for version, status in versions.items()
+                ]
+                if self.has_maps
                 else None
             ),
             order_id=self._order_id,
@@ -311,6 +325,7 @@ class SimulatedRobot:
         if problems:
             raise Rejection(VALIDATION_ERROR, "; ".join(problems))
         check_usable(order)
+        self._check_maps(order)
         if order.order_id != self._order_id:
             self._start_order(order)
         elif order.order_update_id < self._order_update_id:
@@ -352,6 +367,15 @@ class SimulatedRobot:
         failure_period = self.config.failure_period
         if failure_period and self._accepted_orders % failure_period == 0:
             self._fail_on_purpose()
+
+    def _check_maps(self, order: Order) -> None:
+        """A 2.1+ robot drives only on maps it has enabled (the master must see to that, 2.1 section 6.7)."""
+        if not self.has_maps:
+            return
+        for node in order.nodes:
+            map_id = node.node_position.map_id if node.node_position else None
+            if map_id is not None and MapStatus.ENABLED not in self._maps.get(map_id, {}).values():
+                raise Rejection(UNKNOWN_MAP, f"node {node.node_id!r} is on map {map_id!r}, not enabled")
 
     def _check_start_node(self, node: Node) -> None:
         """The first node must be trivially reachable: the robot stands on it or within its range."""
@@ -456,6 +480,7 @@ class SimulatedRobot:
         """Run actions and drive until blocked: an action still running, paused, or (at most) one
         motion step done; instant mode goes on until the decision point."""
         instant = self.settings.completes_instantly
+        self._finish_downloads(now)
         start = self._pose
         moved = False
         while True:
@@ -540,7 +565,7 @@ class SimulatedRobot:
     def _apply(self, effect: Effect) -> None:
         match effect:
             case SetMap(map_id=map_id):
-                self._map_id = map_id
+                self._localize_on(map_id)
             case SetLoad(load_id=load_id, load_type=load_type):
                 self._loads = [Load(load_id=load_id, load_type=load_type)]
             case ClearLoads():
@@ -627,6 +652,8 @@ class SimulatedRobot:
                 finish(record, "teleoperation stopped")
             case ActionType.INIT_POSITION:
                 self._init_position(record)
+            case ActionType.DOWNLOAD_MAP | ActionType.ENABLE_MAP | ActionType.DELETE_MAP if self.has_maps:
+                self._map_action(record, now)
             case _:
                 self._instant_action_failed(
                     record, f"unsupported instant action type {record.action.action_type!r}"
@@ -696,10 +723,74 @@ class SimulatedRobot:
             self._instant_action_failed(record, str(exc))
             return
         self._pose = Pose(x, y, normalize_angle(theta))
-        self._map_id = map_id
+        self._localize_on(map_id)
         if "lastNodeId" in parameters:
             self._last_node_id = str(parameters["lastNodeId"])
         finish(record, "position set")
+
+    # --- maps (2.1+) -----------------------------------------------------------------------------------
+
+    def _localize_on(self, map_id: str) -> None:
+        """Switch to `map_id` (load_map, initPosition): a map the robot switches to is one it has, enabled."""
+        self._map_id = map_id
+        versions = self._maps.setdefault(map_id, {})
+        if MapStatus.ENABLED not in versions.values():
+            versions[max(versions, default=MAP_VERSION)] = MapStatus.ENABLED
+        self._state_changed = True
+
+    def _map_action(self, record: ActionRecord, now: float) -> None:
+        """downloadMap, enableMap, deleteMap, as 2.1 section 6.7 and its action table describe them."""
+        parameters = parameters_of(record.action)
+        try:
+            map_id, version = (str(require(parameters, key)) for key in ("mapId", "mapVersion"))
+            if record.action.action_type == ActionType.DOWNLOAD_MAP:
+                require(parameters, "mapDownloadLink")
+        except UnusableAction as exc:
+            self._instant_action_failed(record, str(exc))
+            return
+        versions = self._maps.get(map_id, {})
+        match record.action.action_type:
+            case ActionType.DOWNLOAD_MAP:
+                downloading = any(
+                    parameters_of(d.action).get("mapId") == map_id
+                    and str(parameters_of(d.action).get("mapVersion")) == version
+                    for d, _ in self._downloads
+                )
+                if version in versions or downloading:
+                    self._map_action_failed(record, DUPLICATE_MAP, f"map {map_id} {version} is already here")
+                    return
+                record.status = ActionStatus.RUNNING
+                seconds = 0.0 if self.settings.completes_instantly else DOWNLOAD_MAP_SECONDS
+                self._downloads.append((record, now + seconds))
+                self._finish_downloads(now)
+            case _ if version not in versions:
+                self._map_action_failed(record, UNKNOWN_MAP, f"map {map_id} {version} is not here")
+            case ActionType.ENABLE_MAP:
+                self._maps[map_id] = {
+                    v: MapStatus.ENABLED if v == version else MapStatus.DISABLED for v in versions
+                }
+                finish(record, f"map {map_id} {version} enabled")
+            case ActionType.DELETE_MAP:
+                del versions[version]
+                if not versions:
+                    del self._maps[map_id]
+                finish(record, f"map {map_id} {version} deleted")
+
+    def _finish_downloads(self, now: float) -> None:
+        """Downloads whose time is up: the map is there, DISABLED, and the downloadMap FINISHED."""
+        done = [(record, at) for record, at in self._downloads if at <= now]
+        for record, _ in done:
+            parameters = parameters_of(record.action)
+            map_id, version = str(parameters["mapId"]), str(parameters["mapVersion"])
+            self._maps.setdefault(map_id, {})[version] = MapStatus.DISABLED
+            finish(record, f"map {map_id} {version} downloaded")
+            self._state_changed = True
+        self._downloads = [entry for entry in self._downloads if entry not in done]
+
+    def _map_action_failed(self, record: ActionRecord, error_type: str, reason: str) -> None:
+        record.status = ActionStatus.FAILED
+        record.result = reason
+        self._add_error(error_type, reason, ErrorLevel.WARNING, [("actionId", record.action.action_id)])
 
     def _instant_action_failed(self, record: ActionRecord, reason: str) -> None:
         record.status = ActionStatus.FAILED
