@@ -278,7 +278,9 @@ class MissionStatusSerializer(serializers.Serializer):
     failure_reason = serializers.CharField(allow_null=True)
     failure_category = serializers.ChoiceField(choices=FailureCategory.choices, allow_null=True)
     waiting_reason = serializers.CharField(
-        allow_null=True, help_text="Why a queued mission has not started yet, e.g. the robot is offline."
+        allow_null=True,
+        help_text="Why a queued mission has not started yet (e.g. the robot is offline, a map it names is "
+        "not enabled), or why a running mission's next route leaf waits for its map.",
     )
 
 
