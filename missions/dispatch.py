@@ -334,8 +334,8 @@ def _maps_missing(state: State | None, mission: MissionRecord) -> str | None:
     """Why a mission waits for maps: its route waypoints name a map the robot reports no ENABLED version
     of (a robot that reports no maps at all is not held, `vda5050.maps.enabled_map_ids`). A tree that does
     not parse is the step's to fail, not this check's."""
-    if state is None:
-        return None
+    if state is None or maps.enabled_map_ids(state) is None:
+        return None  # no maps reported: nothing to wait for, and no tree to parse
     try:
         tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
     except engine.TreeError:
