@@ -15,11 +15,11 @@ from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
 from fleet.api import UsageError, object_name_validator
-from robots.api.serializers import RobotSpecSerializer, RobotVda5050Serializer
-from robots.choices import SettingSource, TeleopAction
-from robots.models import Robot
+from robots.api.serializers import MapActionRequestSerializer, RobotSpecSerializer, RobotVda5050Serializer
+from robots.choices import MapAction, SettingSource, TeleopAction
+from robots.models import Robot, RobotMapAction
 from robots.selectors import robot_map_actions
-from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec
+from robots.services import robot_create, robot_delete, robot_map_action, robot_teleop, robot_update_spec
 
 BATTERY_FIELDS = ("battery_critical_level", "battery_recommended_minimum", "battery_recommended_maximum")
 # Spec fields an operator may edit on an existing robot; teleop is switched with the actions instead,
@@ -299,3 +299,97 @@ class RobotAdmin(admin.ModelAdmin):
     @admin.action(description="Stop teleop", permissions=["change"])
     def stop_teleop(self, request: HttpRequest, queryset: QuerySet[Robot]) -> None:
         self.teleop(request, queryset, TeleopAction.STOP)
+
+
+class MapActionAdminForm(forms.ModelForm):
+    """A map action for a robot, checked by the API's own request serializer (the admin accepts exactly
+    what POST /robot/{name}/map accepts); `request_body` then holds it."""
+
+    action = forms.ChoiceField(choices=MapAction.choices)
+    map_id = forms.CharField(strip=False)
+    map_version = forms.CharField(strip=False)
+    map_download_link = forms.CharField(strip=False, required=False, help_text="downloadMap only, required.")
+    map_hash = forms.CharField(strip=False, required=False, help_text="downloadMap only, optional.")
+
+    class Meta:
+        model = RobotMapAction
+        fields = ("robot",)
+
+    def clean(self) -> dict[str, Any]:
+        cleaned_data = super().clean()
+        if self.errors:
+            return cleaned_data
+        body = {
+            key: cleaned_data[key]
+            for key in MapActionRequestSerializer._declared_fields
+            if cleaned_data.get(key) not in (None, "")
+        }
+        serializer = MapActionRequestSerializer(data=body)
+        if serializer.is_valid():
+            self.request_body = serializer.validated_data
+        for path, message in serializer_errors(serializer.errors):
+            field = path[0] if path and path[0] in self.fields else None
+            self.add_error(field, message)
+        return cleaned_data
+
+
+@admin.register(RobotMapAction)
+class RobotMapActionAdmin(admin.ModelAdmin):
+    """Map actions asked of robots, with the status each robot reported; an operator adds one to have a
+    robot download, enable or delete a map (through the same service as the API)."""
+
+    form = MapActionAdminForm
+    list_display = ("created_at", "robot", "action_type", "parameters", "status", "sent_at")
+    list_filter = ("action_type", "status")
+    search_fields = ("robot__name",)
+    add_fieldsets = (
+        (None, {"fields": ("robot", "action", "map_id", "map_version", "map_download_link", "map_hash")}),
+    )
+    readonly_fields = ("action_id", "robot", "action_type", "parameters", "status", "sent_at", "created_at")
+
+    def get_fieldsets(self, request: HttpRequest, obj: RobotMapAction | None = None) -> tuple:
+        return self.add_fieldsets if obj is None else ((None, {"fields": self.readonly_fields}),)
+
+    def get_readonly_fields(self, request: HttpRequest, obj: RobotMapAction | None = None) -> tuple:
+        return () if obj is None else self.readonly_fields
+
+    def has_change_permission(self, request: HttpRequest, obj: RobotMapAction | None = None) -> bool:
+        return False  # what the robot reports is not the operator's to edit
+
+    def has_delete_permission(self, request: HttpRequest, obj: RobotMapAction | None = None) -> bool:
+        return False
+
+    def changeform_view(
+        self,
+        request: HttpRequest,
+        object_id: str | None = None,
+        form_url: str = "",
+        extra_context: Any = None,
+    ) -> HttpResponse:
+        """A map action the service refuses (a 2.0 robot) is shown as an error on the same page."""
+        try:
+            return super().changeform_view(request, object_id, form_url, extra_context)
+        except UsageError as error:
+            self.message_user(request, error.message, messages.ERROR)
+            return HttpResponseRedirect(request.get_full_path())
+
+    def save_model(
+        self, request: HttpRequest, obj: RobotMapAction, form: MapActionAdminForm, change: bool
+    ) -> None:
+        body = form.request_body
+        queued = robot_map_action(
+            actor=request_actor(request),
+            robot=obj.robot,
+            action=MapAction(body["action"]),
+            map_id=body["map_id"],
+            map_version=body["map_version"],
+            map_download_link=body.get("map_download_link"),
+            map_hash=body.get("map_hash"),
+        )
+        obj.action_id, obj.action_type, obj.parameters = (
+            queued.action_id,
+            queued.action_type,
+            queued.parameters,
+        )
+        obj.created_at = queued.created_at
+        obj._state.adding = False

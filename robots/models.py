@@ -1,7 +1,15 @@
 from django.conf import settings
 from django.db import models
 
-from robots.choices import AgvClass, InstantActionsKey, Lifecycle, ProtocolVersion, RobotState, SettingSource
+from robots.choices import (
+    AgvClass,
+    InstantActionsKey,
+    Lifecycle,
+    MapAction,
+    ProtocolVersion,
+    RobotState,
+    SettingSource,
+)
 
 
 def default_interface_name() -> str:
@@ -131,3 +139,20 @@ class InstantAction(models.Model):
 
     def __str__(self) -> str:
         return f"{self.action_type} {self.action_id}"
+
+
+class MapActionManager(models.Manager["RobotMapAction"]):
+    def get_queryset(self) -> models.QuerySet["RobotMapAction"]:
+        return super().get_queryset().filter(action_type__in=MapAction.values)
+
+
+class RobotMapAction(InstantAction):
+    """The instant actions that manage a robot's maps (downloadMap, enableMap, deleteMap): the admin's view
+    of them, where operators ask for new ones too."""
+
+    objects = MapActionManager()
+
+    class Meta:
+        proxy = True
+        verbose_name = "map action"
+        ordering = ["-created_at"]

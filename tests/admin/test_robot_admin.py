@@ -11,7 +11,7 @@ from django.urls import reverse
 
 from robots.admin import EDITABLE_SPEC_FIELDS
 from robots.choices import Lifecycle, MapAction, RobotState
-from robots.models import Robot
+from robots.models import InstantAction, Robot
 from robots.services import robot_map_action
 from tests.factories import MissionFactory, RobotFactory
 
@@ -253,3 +253,39 @@ def test_the_change_page_shows_the_reported_maps_and_the_map_actions(admin_clien
 
     assert "<td>hall</td><td>2</td><td>ENABLED</td><td>ground</td>" in content
     assert "<td>deleteMap</td><td>mapId=yard, mapVersion=1</td><td>not reported yet</td>" in content
+
+
+MAP_ACTION_ADD = reverse("admin:robots_robotmapaction_add")
+
+
+def test_an_operator_asks_a_map_action_in_the_admin_and_sees_its_status(admin_client: Client, woken):
+    RobotFactory(name="carter01", protocol_version="3.0.0")
+    form = {"robot": "carter01", "action": "downloadMap", "map_id": "hall", "map_version": "3"}
+
+    refused = admin_client.post(MAP_ACTION_ADD, form)
+    assert "downloadMap needs a map_download_link." in refused.content.decode()
+
+    link = "https://maps.example/hall/3"
+    response = admin_client.post(MAP_ACTION_ADD, {**form, "map_download_link": link}, follow=True)
+
+    assert response.status_code == 200
+    [action] = InstantAction.objects.filter(robot_id="carter01", action_type="downloadMap")
+    assert action.parameters == {"mapId": "hall", "mapVersion": "3", "mapDownloadLink": link}
+    assert woken == ["carter01"]
+    InstantAction.objects.filter(pk=action.pk).update(status="FINISHED")
+    listing = admin_client.get(reverse("admin:robots_robotmapaction_changelist")).content.decode()
+    assert "FINISHED" in listing and "downloadMap" in listing
+
+
+def test_the_admin_refuses_map_actions_for_a_2_0_robot(admin_client: Client, woken):
+    RobotFactory(name="old01", protocol_version="2.0.0")
+    form = {"robot": "old01", "action": "enableMap", "map_id": "hall", "map_version": "3"}
+
+    response = admin_client.post(MAP_ACTION_ADD, form, follow=True)
+
+    assert (
+        messages.ERROR,
+        "Robot old01 speaks VDA 5050 2.0.0, which has no map actions (maps came with 2.1.0).",
+    ) in sent_messages(response)
+    assert not InstantAction.objects.filter(robot_id="old01", action_type="enableMap").exists()
+    assert woken == []
