@@ -74,6 +74,7 @@ INSTALLED_APPS = [
     "access",
     "robots",
     "missions",
+    "changes",
     "workers",
 ]
 
@@ -188,6 +189,19 @@ SPECTACULAR_SETTINGS = {
     },
 }
 
+# --- Watch streams and the change feed (README "Watch streams") -----------------------------------------
+# The stream process (ASGI) serving GET /robot/watch and GET /mission/watch; the API answers those with a
+# redirect to FLEET_STREAM_URL, else to its own host on this port.
+STREAM_PORT = env_int("FLEET_STREAM_PORT", 5002)
+STREAM_URL = env_str("FLEET_STREAM_URL", "")
+# How often the stream process reads the change feed for its watchers (the streams' added latency).
+WATCH_POLL_SECONDS = env_float("FLEET_WATCH_POLL_SECONDS", 0.2)
+# Lines that may wait for one watcher (a client that reads too slowly): one more and it is told and dropped.
+WATCH_QUEUE_LINES = env_int("FLEET_WATCH_QUEUE_LINES", 10_000)
+# How long the change feed keeps a change (beat trims older ones every FLEET_CHANGE_TRIM_SECONDS).
+CHANGE_RETENTION_SECONDS = env_float("FLEET_CHANGE_RETENTION_SECONDS", 3600.0)
+CHANGE_TRIM_SECONDS = env_float("FLEET_CHANGE_TRIM_SECONDS", 60.0)
+
 # --- API limits: bad input is a 400 that says which limit, never a worker's time or memory -------------
 # Read at start (the schema at /openapi.json states them). README.md, "Limits", has what each bounds.
 API_MAX_BODY_BYTES = env_int("FLEET_API_MAX_BODY_BYTES", 1_048_576)
@@ -290,4 +304,5 @@ CELERY_BEAT_SCHEDULE = {
     "check-heartbeats": {"task": "fleet.check_heartbeats", "schedule": DISPATCH_BEAT_PERIOD},
     "sweep": {"task": "fleet.sweep", "schedule": DISPATCH_BEAT_PERIOD},
     "step-stalled": {"task": "fleet.step_stalled", "schedule": DISPATCH_STALL_CHECK_SECONDS},
+    "trim-changes": {"task": "fleet.trim_changes", "schedule": CHANGE_TRIM_SECONDS},
 }

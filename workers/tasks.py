@@ -9,6 +9,7 @@ from celery.signals import worker_ready
 from django.conf import settings
 from django.db import connections
 
+from changes.services import changes_trim
 from fleet.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished
@@ -75,6 +76,12 @@ def sweep() -> None:
 def step_stalled() -> None:
     """Step robots that finished their mission's order while the mission did not move on."""
     steps.request_steps(mission_selectors.robots_stalled())
+
+
+@shared_task(name="fleet.trim_changes", ignore_result=True)
+def trim_changes() -> None:
+    """Keep the change feed within its retention window."""
+    changes_trim()
 
 
 @worker_ready.connect

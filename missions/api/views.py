@@ -1,6 +1,7 @@
 """Mission endpoints and GET /behaviors: thin methods that validate input, call a selector or service, and
 serialize."""
 
+from django.http import HttpResponse
 from drf_spectacular.utils import (
     OpenApiExample,
     extend_schema,
@@ -14,6 +15,8 @@ from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from access.authentication import request_actor
+from changes.choices import ChangeKind
+from changes.views import watch_response
 from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request, body_validated
 from missions.api.serializers import (
     NODE_KIND_SERIALIZERS,
@@ -238,6 +241,16 @@ class MissionViewSet(viewsets.GenericViewSet):
 
     def list(self, request: Request) -> Response:
         return Response(MissionSerializer(mission_list(filters=request.query_params), many=True).data)
+
+    # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
+    # /mission/{name}, so "watch" is never taken for a mission's name.
+    @extend_schema(exclude=True)
+    @action(detail=False, methods=["get"], url_path="watch")
+    def watch(self, request: Request) -> HttpResponse:
+        """NDJSON: every mission the filters select, then each change (README "Watch streams")."""
+        return watch_response(
+            request, kind=ChangeKind.MISSION, select=mission_list, serializer=MissionSerializer
+        )
 
     def create(self, request: Request) -> Response:
         spec = body_validated(MissionCreateSerializer, request.data)

@@ -1,5 +1,6 @@
 """Robot endpoints: thin methods that validate input, call a selector or service, and serialize."""
 
+from django.http import HttpResponse
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiExample, OpenApiResponse, extend_schema, extend_schema_view
 from rest_framework import viewsets
@@ -8,6 +9,8 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 
 from access.authentication import request_actor
+from changes.choices import ChangeKind
+from changes.views import watch_response
 from fleet.api import (
     DETAIL_RESPONSE,
     SCHEMA_ERROR_EXAMPLE,
@@ -179,6 +182,14 @@ class RobotViewSet(viewsets.GenericViewSet):
 
     def list(self, request: Request) -> Response:
         return Response(RobotSerializer(robot_list(filters=request.query_params), many=True).data)
+
+    # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
+    # /robot/{name}, so "watch" is never taken for a robot's name.
+    @extend_schema(exclude=True)
+    @action(detail=False, methods=["get"], url_path="watch")
+    def watch(self, request: Request) -> HttpResponse:
+        """NDJSON: every robot the filters select, then each change (README "Watch streams")."""
+        return watch_response(request, kind=ChangeKind.ROBOT, select=robot_list, serializer=RobotSerializer)
 
     def create(self, request: Request) -> Response:
         body = RobotCreateSerializer(data=request.data)

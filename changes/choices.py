@@ -1,0 +1,6 @@
+from django.db import models
+
+
+class ChangeKind(models.TextChoices):
+    ROBOT = "robot"
+    MISSION = "mission"

@@ -1,0 +1,31 @@
+"""The change feed: one row per write of a robot or mission row, written by a trigger in the writing
+transaction (migration 0001), whatever wrote it (the ORM, the step's plain SQL, the bridge's flush, the
+admin). README "Watch streams" and docs/change-feed.md say why it is built this way."""
+
+from django.db import models
+
+from changes.choices import ChangeKind
+
+
+class Change(models.Model):
+    """A robot's or mission's row as one committed transaction left it (`image`, its columns as JSON;
+    a deleted row's last image with lifecycle DELETED).
+
+    `xid` is the writing transaction's id: a reader knows which changes it has seen by the snapshot it
+    read them in (a transaction's changes all become visible at its commit), not by `id`, which is taken
+    before commit and so is not in commit order.
+    """
+
+    id = models.BigAutoField(primary_key=True)
+    xid = models.BigIntegerField(help_text="The writing transaction's id (xid8, as pg_current_xact_id()).")
+    kind = models.CharField(max_length=10, choices=ChangeKind.choices)
+    name = models.CharField(max_length=100)
+    image = models.JSONField(help_text="The row's columns after the write.")
+    created_at = models.DateTimeField()
+
+    class Meta:
+        db_table = "changes_change"
+        indexes = [models.Index(fields=["xid"], name="changes_xid")]
+
+    def __str__(self) -> str:
+        return f"{self.kind} {self.name} #{self.id}"
