@@ -67,13 +67,16 @@ class Watcher:
 
 
 def _behind_line(kind: str) -> bytes:
-    return orjson.dumps(
-        {
-            "error": "watcher_behind",
-            "detail": f"More than {settings.WATCH_QUEUE_LINES} {kind} changes waited for this watcher: it is "
-            "dropped. Watch again for a new snapshot.",
-        }
-    ) + b"\n"
+    return (
+        orjson.dumps(
+            {
+                "error": "watcher_behind",
+                "detail": f"More than {settings.WATCH_QUEUE_LINES} {kind} changes waited for this watcher: it is "
+                "dropped. Watch again for a new snapshot.",
+            }
+        )
+        + b"\n"
+    )
 
 
 def snapshot(watched: Watched, queryset: QuerySet) -> tuple[str, list[tuple[str, bytes]]]:

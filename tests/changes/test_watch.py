@@ -12,7 +12,7 @@ from changes.models import Change
 from changes.services import changes_trim
 from missions.models import Mission
 from robots.models import Robot
-from tests.changes.conftest import Watch
+from tests.watching import Watch
 
 
 def _mission(robot: str, name: str) -> dict:
@@ -23,7 +23,7 @@ def _mission(robot: str, name: str) -> dict:
 def test_a_watch_gives_the_snapshot_then_each_change_as_get_shows_it(stream_server, api, watches):
     api.post("/robot", {"name": "wa-1"})
     api.post("/robot", {"name": "wa-2"})
-    watch = Watch(stream_server, "/robot/watch?names=wa-1&names=wa-2")
+    watch = Watch(f"{stream_server.url}/robot/watch?names=wa-1&names=wa-2", stream_server.auth)
     watches.append(watch)
     assert watch.response.headers["Content-Type"] == "application/x-ndjson"
     assert watch.take(2) == [api.get("/robot/wa-1").json(), api.get("/robot/wa-2").json()]
@@ -37,7 +37,7 @@ def test_a_watch_gives_the_snapshot_then_each_change_as_get_shows_it(stream_serv
 
 
 def test_missions_stream_in_commit_order_with_nothing_repeated(stream_server, api, watches):
-    watch = Watch(stream_server, "/mission/watch?robot=wm-robot")
+    watch = Watch(f"{stream_server.url}/mission/watch?robot=wm-robot", stream_server.auth)
     watches.append(watch)
     assert watch.quiet(0.5)  # no mission of that robot yet: an empty snapshot
     api.post("/mission", _mission("wm-robot", "wm-1"))
@@ -58,7 +58,7 @@ def test_missions_stream_in_commit_order_with_nothing_repeated(stream_server, ap
 
 def test_a_rolled_back_change_emits_nothing(stream_server, api, watches):
     api.post("/mission", _mission("wr-robot", "wr-1"))
-    watch = Watch(stream_server, "/mission/watch?robot=wr-robot")
+    watch = Watch(f"{stream_server.url}/mission/watch?robot=wr-robot", stream_server.auth)
     watches.append(watch)
     assert watch.next()["status"]["failure_reason"] is None
     with pytest.raises(RuntimeError), transaction.atomic():
@@ -74,7 +74,7 @@ def test_a_change_committed_after_a_later_one_is_not_lost(stream_server, api, wa
     skip the earlier id committed last. The stream goes by snapshots."""
     api.post("/mission", _mission("wl-robot", "wl-early"))
     api.post("/mission", _mission("wl-robot", "wl-late"))
-    watch = Watch(stream_server, "/mission/watch?robot=wl-robot")
+    watch = Watch(f"{stream_server.url}/mission/watch?robot=wl-robot", stream_server.auth)
     watches.append(watch)
     watch.take(2)
     with psycopg.connect(**_psycopg_params()) as other:
@@ -105,7 +105,7 @@ def _psycopg_params() -> dict:
 def test_filters_select_the_snapshot_and_the_changes(stream_server, api, watches):
     api.post("/mission", _mission("wf-a", "wf-a1"))
     api.post("/mission", _mission("wf-b", "wf-b1"))
-    watch = Watch(stream_server, "/mission/watch?robot=wf-a&state=CANCELED")
+    watch = Watch(f"{stream_server.url}/mission/watch?robot=wf-a&state=CANCELED", stream_server.auth)
     watches.append(watch)
     assert watch.quiet(0.5)
     api.post("/mission/wf-b1/cancel")
@@ -113,7 +113,7 @@ def test_filters_select_the_snapshot_and_the_changes(stream_server, api, watches
     line = watch.next()
     assert (line["name"], line["status"]["state"]) == ("wf-a1", "CANCELED")
     assert watch.quiet(0.5)
-    robots = Watch(stream_server, "/robot/watch?names=wf-none")
+    robots = Watch(f"{stream_server.url}/robot/watch?names=wf-none", stream_server.auth)
     watches.append(robots)
     api.post("/robot", {"name": "wf-other"})
     api.post("/robot", {"name": "wf-none"})
@@ -138,7 +138,8 @@ def test_watch_needs_credentials_and_valid_filters(stream_server):
 
 def test_publisher_id_is_accepted_and_watch_is_no_robot_name(stream_server, api, watches):
     api.post("/robot", {"name": "watch"})  # a robot may be called "watch": GET /robot/watch is the stream
-    watch = Watch(stream_server, "/robot/watch?names=watch&publisher_id=0b7b3e2c-4a5e-4a7e-9c0e-2f0c1d2e3f40")
+    publisher = "publisher_id=0b7b3e2c-4a5e-4a7e-9c0e-2f0c1d2e3f40"
+    watch = Watch(f"{stream_server.url}/robot/watch?names=watch&{publisher}", stream_server.auth)
     watches.append(watch)
     assert watch.next()["name"] == "watch"
     assert watch.response.headers["Content-Type"] == "application/x-ndjson"
@@ -155,9 +156,9 @@ def test_the_wsgi_api_sends_watchers_to_the_stream_process(api):
 
 def test_a_watcher_that_falls_behind_is_told_and_dropped(stream_server, api, watches):
     api.post("/robot", {"name": "ws-slow"})
-    slow = Watch(stream_server, "/robot/watch?names=ws-slow", read=False)
+    slow = Watch(f"{stream_server.url}/robot/watch?names=ws-slow", stream_server.auth, read=False)
     watches.append(slow)
-    fast = Watch(stream_server, "/robot/watch?names=ws-slow")
+    fast = Watch(f"{stream_server.url}/robot/watch?names=ws-slow", stream_server.auth)
     watches.append(fast)
     fast.next()
     # Far more changes than the socket buffers and the watcher's queue hold, while `slow` reads nothing.
@@ -179,13 +180,13 @@ def test_a_watcher_that_falls_behind_is_told_and_dropped(stream_server, api, wat
 def test_twenty_open_watches_leave_requests_unhindered(stream_server, api, watches):
     api.post("/robot", {"name": "wt-1"})
     for _ in range(20):
-        watches.append(Watch(stream_server, "/robot/watch?names=wt-1"))
+        watches.append(Watch(f"{stream_server.url}/robot/watch?names=wt-1", stream_server.auth))
     for watch in watches:
         assert watch.next()["name"] == "wt-1"
     started = time.monotonic()
     for _ in range(10):
         assert requests.get(f"{stream_server.url}/robot/wt-1", headers=stream_server.auth, timeout=10).ok
-    another = Watch(stream_server, "/robot/watch?names=wt-1")
+    another = Watch(f"{stream_server.url}/robot/watch?names=wt-1", stream_server.auth)
     watches.append(another)
     assert another.next()["name"] == "wt-1"
     assert time.monotonic() - started < 10
