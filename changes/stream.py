@@ -71,8 +71,8 @@ def _behind_line(kind: str) -> bytes:
         orjson.dumps(
             {
                 "error": "watcher_behind",
-                "detail": f"More than {settings.WATCH_QUEUE_LINES} {kind} changes waited for this watcher: it is "
-                "dropped. Watch again for a new snapshot.",
+                "detail": f"More than {settings.WATCH_QUEUE_LINES} {kind} changes waited for this watcher: "
+                "it is dropped. Watch again for a new snapshot.",
             }
         )
         + b"\n"
