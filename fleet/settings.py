@@ -199,7 +199,7 @@ WATCH_POLL_SECONDS = env_float("FLEET_WATCH_POLL_SECONDS", 0.2)
 # Lines that may wait for one watcher (a client that reads too slowly): one more and it is told and dropped.
 WATCH_QUEUE_LINES = env_int("FLEET_WATCH_QUEUE_LINES", 10_000)
 # How long the change feed keeps a change (beat trims older ones every FLEET_CHANGE_TRIM_SECONDS).
-CHANGE_RETENTION_SECONDS = env_float("FLEET_CHANGE_RETENTION_SECONDS", 3600.0)
+CHANGE_RETENTION_SECONDS = env_float("FLEET_CHANGE_RETENTION_SECONDS", 600.0)
 CHANGE_TRIM_SECONDS = env_float("FLEET_CHANGE_TRIM_SECONDS", 60.0)
 
 # --- API limits: bad input is a 400 that says which limit, never a worker's time or memory -------------
