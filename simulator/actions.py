@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from vda5050.maps import MAP_DOWNLOAD_LINK, MAP_HASH, MAP_ID, MAP_VERSION
 from vda5050.models import Action, ActionScope, ActionType, ValueDataType
 
 LOAD_MAP_SECONDS = 1.0
@@ -47,6 +48,11 @@ class ActionSpec:
 
 NODE_SCOPES = (ActionScope.NODE, ActionScope.EDGE)
 INSTANT_SCOPE = (ActionScope.INSTANT,)
+# What every map action (downloadMap, enableMap, deleteMap) names.
+MAP_PARAMETERS = (
+    ParameterSpec(MAP_ID, ValueDataType.STRING, "the map"),
+    ParameterSpec(MAP_VERSION, ValueDataType.STRING, "its version"),
+)
 
 ACTION_SPECS: tuple[ActionSpec, ...] = (
     ActionSpec(
@@ -89,29 +95,22 @@ ACTION_SPECS: tuple[ActionSpec, ...] = (
         "Downloads a map version (takes 1 s); it is then reported DISABLED. A version the robot has fails.",
         INSTANT_SCOPE,
         (
-            ParameterSpec("mapId", ValueDataType.STRING, "the map"),
-            ParameterSpec("mapVersion", ValueDataType.STRING, "its version"),
-            ParameterSpec("mapDownloadLink", ValueDataType.STRING, "where to download it (not fetched)"),
-            ParameterSpec("mapHash", ValueDataType.STRING, "hash of the download", is_optional=True),
+            *MAP_PARAMETERS,
+            ParameterSpec(MAP_DOWNLOAD_LINK, ValueDataType.STRING, "where to download it (not fetched)"),
+            ParameterSpec(MAP_HASH, ValueDataType.STRING, "hash of the download", is_optional=True),
         ),
     ),
     ActionSpec(
         ActionType.ENABLE_MAP,
         "Enables a map version the robot has; the other versions of its mapId are disabled.",
         INSTANT_SCOPE,
-        (
-            ParameterSpec("mapId", ValueDataType.STRING, "the map"),
-            ParameterSpec("mapVersion", ValueDataType.STRING, "its version"),
-        ),
+        MAP_PARAMETERS,
     ),
     ActionSpec(
         ActionType.DELETE_MAP,
         "Deletes a map version the robot has.",
         INSTANT_SCOPE,
-        (
-            ParameterSpec("mapId", ValueDataType.STRING, "the map"),
-            ParameterSpec("mapVersion", ValueDataType.STRING, "its version"),
-        ),
+        MAP_PARAMETERS,
     ),
     ActionSpec(
         ActionType.INIT_POSITION,

@@ -40,6 +40,7 @@ from simulator.factsheet import factsheet_content
 from simulator.motion import Pose, Target, angle_difference, jump_to, normalize_angle, step_towards
 from vda5050.codec import LEGACY_INSTANT_ACTIONS_KEY, encode, header_for, parse_instant_actions, parse_order
 from vda5050.errors import ProtocolError
+from vda5050.maps import MAP_DOWNLOAD_LINK, MAP_ID, MAP_VERSION, has_maps
 from vda5050.models import (
     Action,
     ActionState,
@@ -73,7 +74,7 @@ from vda5050.models import (
 from vda5050.orders import check_order_graph
 from vda5050.state import FINAL_ACTION_STATUSES
 from vda5050.topics import RobotAddress, Topic, major_version_of, topic_for
-from vda5050.versions import MAJOR_3, V2_0, major_of
+from vda5050.versions import INSTANT_ACTION_BLOCKING_3, MAJOR_3, major_of
 
 # errorType values: the document's predefined ones, plus our own (vendor-specific) names.
 VALIDATION_ERROR = "validationError"
@@ -103,7 +104,7 @@ LIB_1_4_NO_ORDER = "instant action is not executable: no active order to be canc
 
 ACTION_FAILURE = "Action failure"  # Isaac Mission Dispatch shows this description as the failure reason
 FAILURE_PERIOD_REACHED = "Failure period reached"
-MAP_VERSION = "1"
+FIRST_MAP_VERSION = "1"  # the version of the map a robot starts on (and of one it switches to)
 STANDARD_AGV_CLASSES = frozenset(agv_class.value for agv_class in AgvClass)
 PUBLISH_OPTIONS: dict[Topic, tuple[int, bool]] = {  # (QoS, retained) per the document
     Topic.STATE: (0, False),
@@ -172,14 +173,14 @@ class SimulatedRobot:
         self.settings = settings
         self.version = config.vda_version or settings.version
         self.is_3 = major_of(self.version) >= MAJOR_3
-        self.has_maps = self.version != V2_0  # maps came with 2.1
+        self.has_maps = has_maps(self.version)
         # who the robot is in message headers (the interface name is not part of a header)
         self.address = RobotAddress(DEFAULT_INTERFACE_NAME, config.manufacturer, config.serial, self.version)
         self.topic_address = topic_address or self.address
         self._pose = Pose(config.x, config.y, normalize_angle(config.theta))
         self._map_id = config.map_id
         # The maps the robot has (2.1+): mapId -> {mapVersion: status}; it starts with its map enabled.
-        self._maps: dict[str, dict[str, MapStatus]] = {config.map_id: {MAP_VERSION: MapStatus.ENABLED}}
+        self._maps: dict[str, dict[str, MapStatus]] = {config.map_id: {FIRST_MAP_VERSION: MapStatus.ENABLED}}
         self._downloads: list[tuple[ActionRecord, float]] = []  # (downloadMap, when it is done)
         self._velocity = (0.0, 0.0, 0.0)
         self._driving = False
@@ -735,16 +736,16 @@ class SimulatedRobot:
         self._map_id = map_id
         versions = self._maps.setdefault(map_id, {})
         if MapStatus.ENABLED not in versions.values():
-            versions[max(versions, default=MAP_VERSION)] = MapStatus.ENABLED
+            versions[max(versions, default=FIRST_MAP_VERSION)] = MapStatus.ENABLED
         self._state_changed = True
 
     def _map_action(self, record: ActionRecord, now: float) -> None:
         """downloadMap, enableMap, deleteMap, as 2.1 section 6.7 and its action table describe them."""
         parameters = parameters_of(record.action)
         try:
-            map_id, version = (str(require(parameters, key)) for key in ("mapId", "mapVersion"))
+            map_id, version = (str(require(parameters, key)) for key in (MAP_ID, MAP_VERSION))
             if record.action.action_type == ActionType.DOWNLOAD_MAP:
-                require(parameters, "mapDownloadLink")
+                require(parameters, MAP_DOWNLOAD_LINK)
         except UnusableAction as exc:
             self._instant_action_failed(record, str(exc))
             return
@@ -752,8 +753,8 @@ class SimulatedRobot:
         match record.action.action_type:
             case ActionType.DOWNLOAD_MAP:
                 downloading = any(
-                    parameters_of(d.action).get("mapId") == map_id
-                    and str(parameters_of(d.action).get("mapVersion")) == version
+                    parameters_of(d.action).get(MAP_ID) == map_id
+                    and str(parameters_of(d.action).get(MAP_VERSION)) == version
                     for d, _ in self._downloads
                 )
                 if version in versions or downloading:
@@ -781,7 +782,7 @@ class SimulatedRobot:
         done = [(record, at) for record, at in self._downloads if at <= now]
         for record, _ in done:
             parameters = parameters_of(record.action)
-            map_id, version = str(parameters["mapId"]), str(parameters["mapVersion"])
+            map_id, version = str(parameters[MAP_ID]), str(parameters[MAP_VERSION])
             self._maps.setdefault(map_id, {})[version] = MapStatus.DISABLED
             finish(record, f"map {map_id} {version} downloaded")
             self._state_changed = True
@@ -930,7 +931,7 @@ def _has_key(payload: bytes, key: str) -> bool:
 def _check_instant_blocking(actions: list[Action]) -> None:
     """3.0: instant actions are NONE-blocking."""
     for index, action in enumerate(actions):
-        if action.blocking_type != "NONE":
+        if action.blocking_type != INSTANT_ACTION_BLOCKING_3:
             raise Rejection(VALIDATION_ERROR, f"actions[{index}].blockingType must be NONE in VDA 5050 3.0")
 
 
