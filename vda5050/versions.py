@@ -248,10 +248,7 @@ _FROM_3: dict[Topic, Callable[[Body], Body]] = {Topic.ORDER: _order_from_3}
 
 
 def major_of(version: str) -> int:
-    match = VERSION_PATTERN.fullmatch(version)
-    if match is None:
-        raise ProtocolError("version", f"{version!r} is not Major.Minor.Patch")
-    return int(match.group(1))
+    return _version_key(version)[0]
 
 
 def supported_version(version: str) -> str | None:
@@ -264,9 +261,7 @@ def supported_version(version: str) -> str | None:
         wanted = _version_key(version)
     except ProtocolError:
         return None
-    candidates = [
-        v for v in SUPPORTED_VERSIONS if _version_key(v)[0] == wanted[0] and _version_key(v) <= wanted
-    ]
+    candidates = [v for v in SUPPORTED_VERSIONS if major_of(v) == wanted[0] and _version_key(v) <= wanted]
     return max(candidates, key=_version_key) if candidates else None
 
 
