@@ -10,20 +10,10 @@ from fleet import livestate
 from missions.robot_step import robot_step
 from robots.models import Robot
 from tests.bridge.test_robot_step import NOW, MakeRobot, put_state
-from tests.dispatch.builders import error
-from vda5050.models import ErrorLevel
+from tests.dispatch.test_compatibility import LIB_1_4_REJECTION
 from vda5050.topics import Topic
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-LIB_1_4_REJECTION = error(
-    "validationError",
-    ErrorLevel.WARNING,
-    "invalid instant actions: TypeError: Invalid VDA 5050 InstantActions"
-    " at #/allOf/1/required, #/instantActions",
-    topic="instantActions",
-    headerId="0",
-)
 
 
 def instant_action_payloads(robot: Robot, *, after: float) -> list[dict]:
