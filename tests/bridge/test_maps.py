@@ -2,7 +2,6 @@
 of maps asks for a step, and a map action asked through the service goes out with its parameters and is
 tracked to its end by the robot's steps (real PostgreSQL and Redis; MQTT bypassed)."""
 
-import time
 from collections.abc import Callable
 from datetime import timedelta
 
@@ -10,18 +9,16 @@ import pytest
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
-from fleet import livestate
-from missions.dispatch import state_digest
 from missions.models import Mission
 from missions.services import mission_create
 from robots.choices import MapAction
 from robots.models import InstantAction, Robot
 from robots.services import robot_map_action
 from tests.bridge.messages import T0, step_requested
-from tests.bridge.test_robot_step import instant_actions, step
+from tests.bridge.test_robot_step import instant_actions, put_state, step
 from tests.dispatch.builders import robot_state
 from tests.factories import TEST_ACTOR
-from vda5050.codec import encode, header_for, parse_state
+from vda5050.codec import encode, header_for
 from vda5050.models import ActionStatus, Map, MapStatus
 from vda5050.topics import RobotAddress
 from workers.bridge import Bridge
@@ -81,19 +78,9 @@ def test_a_robot_whose_map_changes_gets_a_step(bridge: Bridge, make_robot: MakeR
 
 
 def put_maps_state(robot: Robot, *maps: Map, header_id: int, action_states=()) -> None:
-    """Store a state as the bridge does."""
-    _, payload = maps_state(robot, *maps, header_id=header_id, action_states=action_states)
-    pipe = livestate.client().pipeline()
-    livestate.store_state(
-        pipe,
-        name=robot.name,
-        payload=payload,
-        timestamp_ms=int((T0 + timedelta(seconds=header_id)).timestamp() * 1000),
-        header_id=header_id,
-        digest=state_digest(parse_state(payload)),
-        arrived_at=time.time(),
-    )
-    livestate.execute(pipe)
+    """Store a state reporting `maps` as the bridge does."""
+    state = robot_state(action_states=action_states).model_copy(update={"maps": list(maps)})
+    put_state(robot, header_id=header_id, state=state)
 
 
 @pytest.mark.django_db(transaction=True)
