@@ -41,7 +41,7 @@ from vda5050.models import (
     State,
     StateContent,
 )
-from vda5050.orders import Pose, Waypoint, route_order
+from vda5050.orders import Pose, Waypoint, cancel_order, instant_action, route_order
 from vda5050.topics import RobotAddress, Topic
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -159,6 +159,23 @@ class RobotHarness:
 @pytest.fixture
 def harness() -> Callable[..., RobotHarness]:
     return RobotHarness
+
+
+def keep_busy(h: RobotHarness) -> None:
+    """Three seconds of everything a robot sends: an order with a pick and a failing action, a message
+    that is no order, and instant actions it runs, refuses and does not know (NONE-blocking, as 3.0
+    requires)."""
+    order = route((1, 0), (1, 1), horizon=((2, 2),))
+    order.nodes[1].actions += [
+        action("pick", "p", loadId="l1"),
+        action("dummy_action", "f", should_fail=1, time=0),
+    ]
+    h.send_order(order)
+    h.send_order(b"{}")
+    h.send_actions(
+        instant_action("factsheetRequest", "fr"), cancel_order("c"), instant_action("unknown", "u")
+    )
+    h.run(3.0)
 
 
 # --- MQTT ---------------------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ import math
 import orjson
 import pytest
 
-from tests.simulator.conftest import RobotHarness, action, route
+from tests.simulator.conftest import RobotHarness, action, keep_busy, route
 from vda5050.models import ActionStatus, Error, OrderContent
 from vda5050.topics import Topic
 
@@ -325,15 +325,7 @@ def test_failure_period_as_warning_lets_the_order_complete() -> None:
 @pytest.mark.parametrize("version", ["2.0.0", "2.1.0"])
 def test_every_message_of_a_busy_robot_is_valid_for_its_version(version: str) -> None:
     h = RobotHarness(version=version, visualization_period=0.5)
-    order = route((1, 0), (1, 1), horizon=((2, 2),))
-    order.nodes[1].actions += [
-        action("pick", "p", loadId="l1"),
-        action("dummy_action", "f", should_fail=1, time=0),
-    ]
-    h.send_order(order)
-    h.send_order(b"{}")
-    h.send_actions(action("factsheetRequest", "fr"), action("cancelOrder", "c"), action("unknown", "u"))
-    h.run(3.0)
+    keep_busy(h)
     assert {m.kind for m in h.sent} == {Topic.CONNECTION, Topic.FACTSHEET, Topic.STATE, Topic.VISUALIZATION}
     assert {orjson.loads(m.payload)["version"] for m in h.sent} == {version}
     maps = h.state.maps

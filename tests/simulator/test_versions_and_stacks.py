@@ -6,7 +6,7 @@ from __future__ import annotations
 import orjson
 
 from simulator.config import Stack, parse_robot_spec
-from tests.simulator.conftest import RobotHarness, action, route
+from tests.simulator.conftest import RobotHarness, keep_busy
 from vda5050.codec import encode
 from vda5050.models import ActionStatus, BlockingType, InstantActionsContent
 from vda5050.orders import cancel_order, instant_action
@@ -25,17 +25,7 @@ def test_a_robot_spec_names_its_version_and_stack() -> None:
 
 def test_every_message_of_a_busy_3_0_robot_is_valid_3_0() -> None:
     h = RobotHarness(SPEC_3, version="2.0.0", visualization_period=0.5)  # the spec's version wins
-    order = route((1, 0), (1, 1), horizon=((2, 2),))
-    order.nodes[1].actions += [
-        action("pick", "p", loadId="l1"),
-        action("dummy_action", "f", should_fail=1, time=0),
-    ]
-    h.send_order(order)
-    h.send_order(b"{}")
-    h.send_actions(
-        instant_action("factsheetRequest", "fr"), cancel_order("c"), instant_action("unknown", "u")
-    )
-    h.run(3.0)
+    keep_busy(h)
 
     assert {m.kind for m in h.sent} == {Topic.CONNECTION, Topic.FACTSHEET, Topic.STATE, Topic.VISUALIZATION}
     assert {orjson.loads(m.payload)["version"] for m in h.sent} == {"3.0.0"}
