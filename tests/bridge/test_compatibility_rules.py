@@ -8,9 +8,11 @@ import pytest
 
 from fleet import livestate
 from missions.robot_step import robot_step
-from robots.models import Robot
+from robots.models import InstantAction, Robot
+from robots.services import instant_action
 from tests.bridge.test_robot_step import NOW, MakeRobot, put_state
-from tests.dispatch.test_compatibility import LIB_1_4_REJECTION
+from tests.dispatch.test_compatibility import LIB_1_4_REJECTION, lib_1_4_no_order_to_cancel
+from vda5050.models import ActionType
 from vda5050.topics import Topic
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -57,3 +59,34 @@ def test_an_operators_key_is_kept_whatever_the_robot_says(make_robot: MakeRobot)
     stored = Robot.objects.get(name=robot.name)
     assert (stored.instant_actions_key, stored.instant_actions_key_source) == ("actions", "OPERATOR")
     assert stored.compatibility_rules == []
+
+
+def refused_cancel(robot: Robot, header_id: int) -> InstantAction:
+    """A cancelOrder the robot was sent, and a state in which it refuses it as vda-5050-lib 1.4.0 does:
+    an error naming it, no action state."""
+    cancel = instant_action(robot.name, ActionType.CANCEL_ORDER)
+    cancel.sent_at, cancel.send_count = NOW, 1
+    cancel.save(force_insert=True)
+    put_state(robot, header_id=header_id, errors=[lib_1_4_no_order_to_cancel(cancel.action_id)])
+    return cancel
+
+
+def test_a_cancel_refused_only_by_an_error_is_stored_failed_and_the_rule_recorded_once(
+    make_robot: MakeRobot,
+) -> None:
+    robot = make_robot(prefix="refuse")
+    Robot.objects.filter(name=robot.name).update(online=True)
+    first = refused_cancel(robot, header_id=1)
+    robot_step(name=robot.name, now=NOW + timedelta(seconds=1))
+    second = refused_cancel(robot, header_id=2)
+    robot_step(name=robot.name, now=NOW + timedelta(seconds=2))
+
+    assert {a.status for a in InstantAction.objects.filter(pk__in=[first.pk, second.pk])} == {"FAILED"}
+    stored = Robot.objects.get(name=robot.name)
+    [rule] = stored.compatibility_rules
+    assert rule["rule"] == "cancel_refused_by_error_only"
+    assert (rule["reason"], rule["applied_at"]) == (
+        "instant action is not executable: no active order to be canceled",
+        (NOW + timedelta(seconds=1)).isoformat(),
+    )
+    assert (stored.instant_actions_key, stored.instant_actions_key_source) == ("actions", "DEFAULT")
