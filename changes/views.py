@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 from django.conf import settings
 from django.core.handlers.asgi import ASGIRequest
+from django.db import connection
 from django.db.models import QuerySet
 from django.http import HttpResponse, HttpResponseRedirect, StreamingHttpResponse
 from rest_framework.exceptions import ErrorDetail
@@ -56,6 +57,9 @@ def watch_response(
         serializer=serializer,
     )
     position, lines = snapshot(watched, select(filters=filters))
+    # The stream may stay open for hours, its changes read on the poller's connection: this request's
+    # connection is let go now, not at the stream's end.
+    connection.close()
     response = StreamingHttpResponse(watch_lines(watched, position, lines), content_type=NDJSON)
     response["Cache-Control"] = "no-cache"
     response["X-Accel-Buffering"] = "no"  # a reverse proxy passes each line on at once

@@ -12,6 +12,7 @@ from changes.models import Change
 from changes.services import changes_trim
 from missions.models import Mission
 from robots.models import Robot
+from tests.waiting import wait_for
 from tests.watching import Watch
 
 
@@ -192,6 +193,34 @@ def test_twenty_open_watches_leave_requests_unhindered(stream_server, api, watch
     assert time.monotonic() - started < 10
     api.put("/robot/wt-1", {"heartbeat_timeout": 5})
     assert all(watch.next()["heartbeat_timeout"] == 5.0 for watch in watches)
+
+
+def _stream_server_connections() -> int:
+    """Connections to the test database other than this test's own: the stream server's."""
+    with connection.cursor() as cursor:
+        cursor.execute(
+            "SELECT count(*) FROM pg_stat_activity WHERE datname = %s AND pid <> pg_backend_pid()",
+            [connection.settings_dict["NAME"]],
+        )
+        return cursor.fetchone()[0]
+
+
+def test_open_streams_and_finished_requests_hold_no_database_connection(stream_server, api, watches):
+    """Each request runs in a thread of its own: its connection must close with it (an unauthenticated
+    client must not be able to use up PostgreSQL's connections), and an open stream, which lives for
+    hours, must not keep its request's. The poller's one connection serves every stream."""
+    api.post("/robot", {"name": "wc-1"})
+    for _ in range(10):
+        watches.append(Watch(f"{stream_server.url}/robot/watch?names=wc-1", stream_server.auth))
+    for _ in range(10):
+        assert requests.get(f"{stream_server.url}/robot/wc-1", headers=stream_server.auth, timeout=10).ok
+        assert requests.get(f"{stream_server.url}/robot/watch", timeout=10).status_code == 401
+        url = f"{stream_server.url}/robot/watch?state=FLYING"
+        assert requests.get(url, headers=stream_server.auth, timeout=10).status_code == 400
+    assert all(watch.next()["name"] == "wc-1" for watch in watches)
+    wait_for(lambda: _stream_server_connections() <= 1, message="the stream server's connections to close")
+    api.put("/robot/wc-1", {"heartbeat_timeout": 7})
+    assert all(watch.next()["heartbeat_timeout"] == 7.0 for watch in watches)
 
 
 def test_changes_older_than_the_retention_window_are_trimmed(transactional_db, settings):
