@@ -5,9 +5,8 @@ Served from the ASGI process (`stream` in deploy/Procfile): a watcher is a queue
 thread. One poller per process reads the feed for all its watchers: watchers with the same filters at the
 same feed position share one query and one serialization per poll.
 
-A feed position is a PostgreSQL snapshot (pg_snapshot as text): the changes a watcher has had are exactly
-those committed in it. The next read, in a REPEATABLE READ transaction, takes the changes its own snapshot
-sees and that one did not, so a change committed late with a lower id is never skipped, and none twice.
+A watcher goes from feed position to feed position (changes.selectors reads the feed), so it has every
+committed change once.
 """
 
 from __future__ import annotations
@@ -20,12 +19,11 @@ from dataclasses import dataclass, field
 
 import orjson
 from django.conf import settings
-from django.db import DatabaseError, connection, transaction
+from django.db import DatabaseError, connection
 from django.db.models import Model, QuerySet
-from django.db.models.expressions import RawSQL
 from rest_framework.serializers import BaseSerializer
 
-from changes.models import Change
+from changes.selectors import watch_changes, watch_snapshot
 
 logger = logging.getLogger(__name__)
 
@@ -80,51 +78,25 @@ def _behind_line(kind: str) -> bytes:
 
 
 def snapshot(watched: Watched, queryset: QuerySet) -> tuple[str, list[tuple[str, bytes]]]:
-    """The objects `queryset` selects now and the feed position they are at, read in one snapshot: the
-    stream goes on from exactly there. Synchronous: the view calls it."""
-    with transaction.atomic():
-        with connection.cursor() as cursor:
-            cursor.execute("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ")
-            cursor.execute("SELECT pg_current_snapshot()::text")
-            (position,) = cursor.fetchone()
-        lines = [(row.pk, _line(watched.serializer, row)) for row in queryset]
-    return position, lines
+    """The snapshot's lines and the feed position they are at. Synchronous: the view calls it."""
+    position, rows = watch_snapshot(queryset=queryset)
+    return position, [(row.pk, _line(watched.serializer, row)) for row in rows]
 
 
 def _line(serializer: type[BaseSerializer], instance: Model) -> bytes:
     return orjson.dumps(serializer(instance).data) + b"\n"
 
 
-def _changed(watched: Watched, since: str) -> list[tuple[str, bytes]]:
-    """The watched objects' changes committed after `since` and before this transaction's snapshot, as
-    (name, line), in feed order. The list endpoint's own filters select them: its query runs over the
-    changes' row images, which a CTE named as the table stands for."""
-    queryset = watched.query()
-    model = queryset.model
-    table = connection.ops.quote_name(model._meta.db_table)
-    ordered = queryset.order_by().annotate(change_id=RawSQL(f"{table}.change_id", [])).order_by("change_id")
-    sql, params = ordered.query.sql_with_params()
-    images = f"""
-        WITH {table} AS (
-            SELECT c.id AS change_id, r.*
-            FROM {Change._meta.db_table} c
-            CROSS JOIN LATERAL jsonb_populate_record(NULL::{table}, c.image) r
-            WHERE c.kind = %s AND c.xid >= pg_snapshot_xmin(%s::pg_snapshot)
-                AND NOT pg_visible_in_snapshot(c.xid, %s::pg_snapshot)
-        )
-    """
-    rows = model.objects.raw(images + sql, [watched.kind, since, since, *params])
-    return [(row.pk, _line(watched.serializer, row)) for row in rows]
-
-
 def _read(groups: list[tuple[Watched, str]]) -> tuple[str, list[list[tuple[str, bytes]]]]:
-    """One poll: the feed position now and, for each (watched, since), its changes up to there."""
-    with transaction.atomic():
-        with connection.cursor() as cursor:
-            cursor.execute("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ")
-            cursor.execute("SELECT pg_current_snapshot()::text")
-            (position,) = cursor.fetchone()
-        return position, [_changed(watched, since) for watched, since in groups]
+    """One poll: the feed position now and, for each (watched, since), its changes' lines up to there."""
+    position, changes = watch_changes(
+        reads=[(watched.kind, watched.query(), since) for watched, since in groups]
+    )
+    lines = [
+        [(row.pk, _line(watched.serializer, row)) for row in rows]
+        for (watched, _), rows in zip(groups, changes, strict=True)
+    ]
+    return position, lines
 
 
 class Hub:
