@@ -1,6 +1,6 @@
 """Writes of the change feed. Its rows themselves are written only by the triggers (migration 0001)."""
 
-from datetime import datetime, timedelta
+from datetime import timedelta
 
 from django.conf import settings
 from django.db import connection
@@ -17,10 +17,10 @@ TRIM_SQL = f"""
 """
 
 
-def changes_trim(*, now: datetime | None = None) -> int:
+def changes_trim() -> int:
     """Delete the changes older than FLEET_CHANGE_RETENTION_SECONDS; returns how many. A watcher is never
     that far behind (FLEET_WATCH_QUEUE_LINES drops it first), so no stream loses a change to this."""
-    cutoff = (now or timezone.now()) - timedelta(seconds=settings.CHANGE_RETENTION_SECONDS)
+    cutoff = timezone.now() - timedelta(seconds=settings.CHANGE_RETENTION_SECONDS)
     with connection.cursor() as cursor:
         cursor.execute(TRIM_SQL, [cutoff])
         return cursor.rowcount

@@ -9,7 +9,6 @@ import requests
 from django.db import connection, transaction
 
 from changes.models import Change
-from changes.services import changes_trim
 from missions.models import Mission
 from robots.models import Robot
 from tests.waiting import wait_for
@@ -221,14 +220,3 @@ def test_open_streams_and_finished_requests_hold_no_database_connection(stream_s
     wait_for(lambda: _stream_server_connections() <= 1, message="the stream server's connections to close")
     api.put("/robot/wc-1", {"heartbeat_timeout": 7})
     assert all(watch.next()["heartbeat_timeout"] == 7.0 for watch in watches)
-
-
-def test_changes_older_than_the_retention_window_are_trimmed(transactional_db, settings):
-    Robot.objects.create(name="wt-trim")
-    Robot.objects.filter(name="wt-trim").update(battery_level=5)
-    assert Change.objects.filter(name="wt-trim").count() == 2
-    settings.CHANGE_RETENTION_SECONDS = 3600
-    assert changes_trim() == 0
-    settings.CHANGE_RETENTION_SECONDS = 0
-    assert changes_trim() == 2
-    assert not Change.objects.exists()

@@ -1,0 +1,26 @@
+"""changes_trim, as beat runs it (fleet.trim_changes): the feed keeps FLEET_CHANGE_RETENTION_SECONDS."""
+
+from datetime import timedelta
+
+from django.conf import settings
+from django.utils import timezone
+
+from changes.models import Change
+from robots.models import Robot
+from tests.factories import RobotFactory
+from workers.tasks import trim_changes
+
+
+def test_changes_older_than_the_retention_window_are_trimmed_and_the_rest_kept(db):
+    RobotFactory(name="tt-old")
+    Robot.objects.filter(name="tt-old").update(battery_level=5)
+    RobotFactory(name="tt-new")
+    old = timezone.now() - timedelta(seconds=settings.CHANGE_RETENTION_SECONDS + 60)
+    assert Change.objects.filter(name="tt-old").update(created_at=old) == 2
+
+    assert settings.CELERY_BEAT_SCHEDULE["trim-changes"]["task"] == trim_changes.name
+    trim_changes.apply().get()
+
+    assert list(Change.objects.values_list("name", flat=True)) == ["tt-new"]
+    trim_changes.apply().get()
+    assert Change.objects.count() == 1
