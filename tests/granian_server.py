@@ -50,12 +50,14 @@ def granian_server(
         "DJANGO_SETTINGS_MODULE": "fleet.settings",
         **env,
     }
-    kind, app = interface
-    argv = [sys.executable, "-m", "granian", "--interface", kind, "--host", "127.0.0.1"]
-    argv += ["--port", str(port), "--workers", "1", "--no-ws", app]
     with log.open("ab") as output:
         process = subprocess.Popen(
-            argv, cwd=ROOT, env=environment, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
+            granian_command(interface, port),
+            cwd=ROOT,
+            env=environment,
+            stdout=output,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
         )
     server = GranianServer(url=f"http://127.0.0.1:{port}", process=process, log=log, token=token)
     try:
@@ -70,14 +72,24 @@ def granian_server(
             process.wait(timeout=30)
 
 
+def granian_command(interface: tuple[str, str], port: int) -> list[str]:
+    """granian serving `interface` on `port` with one worker process."""
+    kind, app = interface
+    argv = [sys.executable, "-m", "granian", "--interface", kind, "--host", "127.0.0.1"]
+    return [*argv, "--port", str(port), "--workers", "1", "--no-ws", app]
+
+
+def healthy(url: str) -> bool:
+    """True if the server at `url` answers GET /health."""
+    try:
+        return requests.get(f"{url}/health", timeout=5).status_code == 200
+    except requests.ConnectionError:
+        return False
+
+
 def _wait_until_healthy(server: GranianServer) -> None:
     deadline = time.monotonic() + START_SECONDS
-    while True:
-        try:
-            if requests.get(f"{server.url}/health", timeout=5).status_code == 200:
-                return
-        except requests.ConnectionError:
-            pass
+    while not healthy(server.url):
         if server.process.poll() is not None or time.monotonic() > deadline:
             raise RuntimeError(f"the server did not start:\n{server.output()}")
         time.sleep(0.1)

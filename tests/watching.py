@@ -10,7 +10,7 @@ import orjson
 import pytest
 import requests
 
-LINE_SECONDS = 20.0  # generous: the machine is shared; nothing asserts on durations
+from tests.waiting import WAIT_SECONDS
 
 
 class Watch:
@@ -35,7 +35,7 @@ class Watch:
             pass
         self._lines.put(None)
 
-    def next(self, timeout: float = LINE_SECONDS) -> dict[str, Any] | None:
+    def next(self, timeout: float = WAIT_SECONDS) -> dict[str, Any] | None:
         """The next line (None once the stream ended)."""
         return self._lines.get(timeout=timeout)
 

@@ -28,6 +28,7 @@ from django.test import TransactionTestCase
 from rest_framework.test import APIClient
 
 from tests.conftest import authenticated_client
+from tests.granian_server import ASGI, granian_command
 from tests.private_redis import free_port
 from tests.server_env import SERVER_ENV
 from tests.vda5050.schemas import validate_message
@@ -206,14 +207,8 @@ def start_servers(logs: Path, **overrides: str) -> Stack:
     stack.add("bridge", BRIDGE)
     stack.add("worker", WORKER)
     stack.add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(logs / "beat-schedule")])
-    stack.add("stream", stream_command(stack.stream_port))
+    stack.add("stream", granian_command(ASGI, stack.stream_port))  # the watch streams
     return stack
-
-
-def stream_command(port: int) -> list[str]:
-    """The stream process (watch streams) as deploy/Procfile runs it, on `port`."""
-    argv = [PYTHON, "-m", "granian", "--interface", "asginl", "--host", "127.0.0.1", "--port", str(port)]
-    return [*argv, "--workers", "1", "--no-ws", "fleet.asgi:application"]
 
 
 @pytest.fixture(scope="package")

@@ -5,9 +5,9 @@ import itertools
 from typing import Any
 
 import pytest
-import requests
 
 from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission
+from tests.granian_server import healthy
 from tests.waiting import wait_for
 from tests.watching import Watch, watches
 
@@ -17,16 +17,6 @@ __all__ = ["watches"]
 LEAF_STATES = ["PENDING", "RUNNING", "COMPLETED"]
 
 
-def _stream_up(stack) -> None:
-    def healthy() -> bool:
-        try:
-            return requests.get(f"{stack.stream_url}/health", timeout=5).ok
-        except requests.ConnectionError:
-            return False
-
-    wait_for(healthy, message="the stream process")
-
-
 def _distinct(values: list[Any]) -> list[Any]:
     return [value for i, value in enumerate(values) if i == 0 or values[i - 1] != value]
 
@@ -34,7 +24,7 @@ def _distinct(values: list[Any]) -> list[Any]:
 def test_every_transition_of_simulated_missions_reaches_the_watcher(
     api, simulator, unique, stack, api_token, watches
 ):
-    _stream_up(stack)
+    wait_for(lambda: healthy(stack.stream_url), message="the stream process")
     robot = unique("watch")
     simulator(f"{robot},0,0", extra=("--speed", "4"))
     create_robot(api, robot)
