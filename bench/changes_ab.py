@@ -1,6 +1,7 @@
 """A/B micro-benchmark of the change feed's cost on the hot writes: the bridge's status flush (1,000 robots
 in one statement) and the step's mission UPDATE (one per transaction), with the feed's triggers enabled
-and disabled, alternating. Run on a database of its own (it creates and deletes its rows):
+and disabled, alternating. Run on a database of its own (it creates and deletes its rows and their feed
+rows):
 
     FLEET_DB_NAME=mission_dispatch_bench .venv/bin/python -m bench.changes_ab
 
@@ -21,6 +22,7 @@ from django.db import connection, transaction  # noqa: E402
 from django.utils import timezone  # noqa: E402
 
 from bench.measure import CALIBRATION_ITERATIONS, _calibration_work  # noqa: E402
+from changes.models import Change  # noqa: E402
 from missions.models import Mission  # noqa: E402
 from missions.robot_step import _mission_update_sql  # noqa: E402
 from missions.rows import mission_db_values  # noqa: E402
@@ -90,6 +92,7 @@ def main() -> None:
         _triggers(True)
         Mission.objects.filter(name__startswith=PREFIX).delete()
         Robot.objects.filter(name__startswith=PREFIX).delete()
+        Change.objects.filter(name__startswith=PREFIX).delete()  # the feed rows all this wrote
     print(f"calibration work: {calibration_ms:.1f} ms (lower is faster)")
     print(f"| feed | status flush, {args.robots} robots (ms, median) | mission UPDATE + commit (ms) |")
     print("|---|---|---|")
