@@ -9,11 +9,9 @@ from access.services import api_token_create
 from tests.granian_server import WSGI, GranianServer, granian_server
 from tests.private_redis import PrivateRedis
 
-ApiServer = GranianServer
-
 
 @pytest.fixture
-def api_server(transactional_db: None, tmp_path: Path) -> Iterator[ApiServer]:
+def api_server(transactional_db: None, tmp_path: Path) -> Iterator[GranianServer]:
     """granian with one worker process on the test database (so its writes are committed: the test is
     transactional, as is the server's token) and a Redis of its own for the wake-ups it sends (no worker
     takes them)."""
