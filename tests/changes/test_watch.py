@@ -3,7 +3,6 @@ snapshot, changes, filters, authentication, the feed's transactions, slow watche
 
 import time
 
-import psycopg
 import pytest
 import requests
 from django.db import connection, transaction
@@ -11,6 +10,7 @@ from django.db import connection, transaction
 from changes.models import Change
 from missions.models import Mission
 from robots.models import Robot
+from tests.database import other_connection
 from tests.waiting import wait_for
 from tests.watching import Watch
 
@@ -77,7 +77,7 @@ def test_a_change_committed_after_a_later_one_is_not_lost(stream_server, api, wa
     watch = Watch(f"{stream_server.url}/mission/watch?robot=wl-robot", stream_server.auth)
     watches.append(watch)
     watch.take(2)
-    with psycopg.connect(**_psycopg_params()) as other:
+    with other_connection() as other:
         other.execute(f"UPDATE {Mission._meta.db_table} SET failure_reason = 'early' WHERE name = 'wl-early'")
         Mission.objects.filter(name="wl-late").update(failure_reason="late")  # commits first
         assert watch.next()["status"]["failure_reason"] == "late"
@@ -89,17 +89,6 @@ def test_a_change_committed_after_a_later_one_is_not_lost(stream_server, api, wa
         for name, reason in (("wl-early", "early"), ("wl-late", "late"))
     )
     assert early < late
-
-
-def _psycopg_params() -> dict:
-    settings = connection.settings_dict
-    return {
-        "dbname": settings["NAME"],
-        "user": settings["USER"],
-        "password": settings["PASSWORD"],
-        "host": settings["HOST"],
-        "port": settings["PORT"],
-    }
 
 
 def test_filters_select_the_snapshot_and_the_changes(stream_server, api, watches):
