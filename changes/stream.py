@@ -55,26 +55,21 @@ class Watcher:
             return
         self.sent[name] = digest
         if self.queue.qsize() >= settings.WATCH_QUEUE_LINES:
-            self.dropped = True
-            while not self.queue.empty():
-                self.queue.get_nowait()
-            self.queue.put_nowait(_behind_line(self.watched.kind))
-            self.queue.put_nowait(None)
+            self.drop(
+                "watcher_behind",
+                f"More than {settings.WATCH_QUEUE_LINES} {self.watched.kind} changes waited for this "
+                "watcher: it is dropped. Watch again for a new snapshot.",
+            )
             return
         self.queue.put_nowait(line)
 
-
-def _behind_line(kind: str) -> bytes:
-    return (
-        orjson.dumps(
-            {
-                "error": "watcher_behind",
-                "detail": f"More than {settings.WATCH_QUEUE_LINES} {kind} changes waited for this watcher: "
-                "it is dropped. Watch again for a new snapshot.",
-            }
-        )
-        + b"\n"
-    )
+    def drop(self, error: str, detail: str) -> None:
+        """End the stream with an error line in place of whatever still waits: the client watches again."""
+        self.dropped = True
+        while not self.queue.empty():
+            self.queue.get_nowait()
+        self.queue.put_nowait(orjson.dumps({"error": error, "detail": detail}) + b"\n")
+        self.queue.put_nowait(None)
 
 
 def snapshot(watched: Watched, queryset: QuerySet) -> tuple[str, list[tuple[str, bytes]]]:
@@ -135,6 +130,14 @@ class Hub:
                 logger.warning("The change feed could not be read; retrying", exc_info=True)
                 await loop.run_in_executor(self._executor, connection.close)
                 continue
+            except Exception:
+                # Anything else would fail again at every poll: end the streams rather than leave them
+                # silent; a watcher that watches again starts a new poller.
+                logger.exception("The change feed's poll failed; ending this process's watch streams")
+                for watcher in list(self.watchers):
+                    watcher.drop("feed_failed", "The server could not read the change feed. Watch again.")
+                self.watchers.clear()
+                return
             for key, lines in zip(keys, changes, strict=True):
                 for watcher in groups[key]:
                     for name, line in lines:
