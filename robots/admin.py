@@ -376,16 +376,7 @@ class RobotMapActionAdmin(admin.ModelAdmin):
     def save_model(
         self, request: HttpRequest, obj: RobotMapAction, form: MapActionAdminForm, change: bool
     ) -> None:
-        body = form.request_body
-        queued = robot_map_action(
-            actor=request_actor(request),
-            robot=obj.robot,
-            action=MapAction(body["action"]),
-            map_id=body["map_id"],
-            map_version=body["map_version"],
-            map_download_link=body.get("map_download_link"),
-            map_hash=body.get("map_hash"),
-        )
+        queued = robot_map_action(actor=request_actor(request), robot=obj.robot, **form.request_body)
         obj.action_id, obj.action_type, obj.parameters = (
             queued.action_id,
             queued.action_type,

@@ -147,6 +147,8 @@ class MapActionRequestSerializer(StrictSerializer):
     )
 
     def validate(self, attrs: dict) -> dict:
+        """Also shapes the body as `robot_map_action` takes it (its keyword arguments)."""
+        attrs["action"] = MapAction(attrs["action"])
         download = attrs["action"] == MapAction.DOWNLOAD
         if download and "map_download_link" not in attrs:
             raise serializers.ValidationError(

@@ -27,7 +27,7 @@ from robots.api.serializers import (
     RobotSpecSerializer,
     TeleopQuerySerializer,
 )
-from robots.choices import MapAction, TeleopAction
+from robots.choices import TeleopAction
 from robots.filters import RobotFilter
 from robots.models import Robot
 from robots.selectors import robot_get, robot_list, robot_map_actions
@@ -324,13 +324,5 @@ class RobotViewSet(viewsets.GenericViewSet):
                 RobotMapsSerializer({"maps": robot.maps, "actions": robot_map_actions(robot=robot)}).data
             )
         body = body_validated(MapActionRequestSerializer, request.data)
-        queued = robot_map_action(
-            actor=request_actor(request),
-            robot=robot,
-            action=MapAction(body["action"]),
-            map_id=body["map_id"],
-            map_version=body["map_version"],
-            map_download_link=body.get("map_download_link"),
-            map_hash=body.get("map_hash"),
-        )
+        queued = robot_map_action(actor=request_actor(request), robot=robot, **body)
         return Response(MapActionSerializer(queued).data)
