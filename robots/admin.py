@@ -93,6 +93,25 @@ def delete_through_service(
         )
 
 
+class ServiceAdmin(admin.ModelAdmin):
+    """A model admin whose saves go through services: a save the service refuses (e.g. a VDA 5050
+    identity another robot uses, a map action for a 2.0 robot) is shown as an error on the same page, not
+    as a server error; the form's transaction is rolled back."""
+
+    def changeform_view(
+        self,
+        request: HttpRequest,
+        object_id: str | None = None,
+        form_url: str = "",
+        extra_context: Any = None,
+    ) -> HttpResponse:
+        try:
+            return super().changeform_view(request, object_id, form_url, extra_context)
+        except UsageError as error:
+            self.message_user(request, error.message, messages.ERROR)
+            return HttpResponseRedirect(request.get_full_path())
+
+
 def robot_spec(values: Mapping[str, Any]) -> dict[str, Any]:
     """Spec fields (by model field name) in the API's spec shape, as the robot services take them."""
     return {
@@ -159,7 +178,7 @@ class RobotAdminForm(forms.ModelForm):
 
 
 @admin.register(Robot)
-class RobotAdmin(admin.ModelAdmin):
+class RobotAdmin(ServiceAdmin):
     form = RobotAdminForm
     list_display = (
         "name",
@@ -250,21 +269,6 @@ class RobotAdmin(admin.ModelAdmin):
             "<table><tr><th>asked</th><th>action</th><th>parameters</th><th>status</th></tr>{}</table>", rows
         )
 
-    def changeform_view(
-        self,
-        request: HttpRequest,
-        object_id: str | None = None,
-        form_url: str = "",
-        extra_context: Any = None,
-    ) -> HttpResponse:
-        """A save the service refuses (e.g. a VDA 5050 identity another robot uses) is shown as an error
-        on the same page, not as a server error; the form's transaction is rolled back."""
-        try:
-            return super().changeform_view(request, object_id, form_url, extra_context)
-        except UsageError as error:
-            self.message_user(request, error.message, messages.ERROR)
-            return HttpResponseRedirect(request.get_full_path())
-
     def save_model(self, request: HttpRequest, obj: Robot, form: RobotAdminForm, change: bool) -> None:
         if not change:
             robot_create(actor=request_actor(request), name=obj.name, prefix=None, spec=form.spec)
@@ -334,7 +338,7 @@ class MapActionAdminForm(forms.ModelForm):
 
 
 @admin.register(RobotMapAction)
-class RobotMapActionAdmin(admin.ModelAdmin):
+class RobotMapActionAdmin(ServiceAdmin):
     """Map actions asked of robots, with the status each robot reported; an operator adds one to have a
     robot download, enable or delete a map (through the same service as the API)."""
 
@@ -358,20 +362,6 @@ class RobotMapActionAdmin(admin.ModelAdmin):
 
     def has_delete_permission(self, request: HttpRequest, obj: RobotMapAction | None = None) -> bool:
         return False
-
-    def changeform_view(
-        self,
-        request: HttpRequest,
-        object_id: str | None = None,
-        form_url: str = "",
-        extra_context: Any = None,
-    ) -> HttpResponse:
-        """A map action the service refuses (a 2.0 robot) is shown as an error on the same page."""
-        try:
-            return super().changeform_view(request, object_id, form_url, extra_context)
-        except UsageError as error:
-            self.message_user(request, error.message, messages.ERROR)
-            return HttpResponseRedirect(request.get_full_path())
 
     def save_model(
         self, request: HttpRequest, obj: RobotMapAction, form: MapActionAdminForm, change: bool
