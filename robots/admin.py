@@ -93,6 +93,16 @@ def delete_through_service(
         )
 
 
+def html_table(headers: Iterable[str], rows: Iterable[Iterable[object]]) -> SafeString:
+    """A read-only list (what a robot reports, what was asked of it) as a small HTML table, escaped."""
+
+    def row(cells: Iterable[object], tag: str) -> SafeString:
+        return format_html_join("", f"<{tag}>{{}}</{tag}>", ((cell,) for cell in cells))
+
+    body = format_html_join("", "<tr>{}</tr>", ((row(cells, "td"),) for cells in rows))
+    return format_html("<table><tr>{}</tr>{}</table>", row(headers, "th"), body)
+
+
 class ServiceAdmin(admin.ModelAdmin):
     """A model admin whose saves go through services: a save the service refuses (e.g. a VDA 5050
     identity another robot uses, a map action for a 2.0 robot) is shown as an error on the same page, not
@@ -231,18 +241,12 @@ class RobotAdmin(ServiceAdmin):
         """What the robot reports (VDA 5050 2.1+ state.maps)."""
         if not robot.maps:
             return "none reported"
-        rows = format_html_join(
-            "",
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+        return html_table(
+            ("map_id", "map_version", "map_status", "map_description"),
             (
                 (m["map_id"], m["map_version"], m["map_status"], m["map_description"] or "")
                 for m in robot.maps
             ),
-        )
-        return format_html(
-            "<table><tr><th>map_id</th><th>map_version</th><th>map_status</th><th>map_description</th></tr>"
-            "{}</table>",
-            rows,
         )
 
     @admin.display(description="map actions")
@@ -252,9 +256,8 @@ class RobotAdmin(ServiceAdmin):
         actions = list(robot_map_actions(robot=robot))
         if not actions:
             return "none"
-        rows = format_html_join(
-            "",
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+        return html_table(
+            ("asked", "action", "parameters", "status"),
             (
                 (
                     a.created_at,
@@ -264,9 +267,6 @@ class RobotAdmin(ServiceAdmin):
                 )
                 for a in actions
             ),
-        )
-        return format_html(
-            "<table><tr><th>asked</th><th>action</th><th>parameters</th><th>status</th></tr>{}</table>", rows
         )
 
     def save_model(self, request: HttpRequest, obj: Robot, form: RobotAdminForm, change: bool) -> None:
