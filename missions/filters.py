@@ -4,12 +4,12 @@ import django_filters as filters
 from django import forms
 from django.db.models import F, QuerySet
 
-from fleet.api import StrictFilterSet
+from fleet.api import INT64_MAX, StrictFilterSet
 from missions.choices import MissionState
 from missions.models import Mission
 
 # most_recent is an SQL LIMIT, a PostgreSQL bigint.
-MOST_RECENT_MAX = 2**63 - 1
+MOST_RECENT_MAX = INT64_MAX
 
 
 class IntegerFilter(filters.NumberFilter):
