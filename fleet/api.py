@@ -269,6 +269,16 @@ class JsonStringField(serializers.CharField):
         return super().to_internal_value(data)
 
 
+class ObjectNameField(JsonStringField):
+    """A name as robots, missions, tree nodes and VDA 5050 topic levels have it: at most
+    OBJECT_NAME_MAX_LENGTH characters (unless `max_length` says less) of OBJECT_NAME_ALPHABET."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("max_length", OBJECT_NAME_MAX_LENGTH)
+        kwargs.setdefault("validators", [object_name_validator])
+        super().__init__(**kwargs)
+
+
 def validate_positive(value: float) -> None:
     if value <= 0:
         raise serializers.ValidationError("Must be greater than 0.", code="greater_than")
@@ -375,23 +385,20 @@ class SpecSerializer(StrictSerializer):
 class ObjectNameSerializer(serializers.Serializer):
     """The `name` or `prefix` of a create body."""
 
-    name = JsonStringField(
+    name = ObjectNameField(
         required=False,
         allow_null=True,
         default=None,
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text=(
             f"Unique name ({OBJECT_NAME_ALPHABET}). If neither name nor prefix is given, a random id of "
             f"{GENERATED_NAME_LENGTH} characters is used."
         ),
     )
-    prefix = JsonStringField(
+    prefix = ObjectNameField(
         required=False,
         allow_null=True,
         default=None,
         max_length=NAME_PREFIX_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text="Instead of name: the object is named <prefix>-<random id>.",
     )
 

@@ -11,16 +11,15 @@ from rest_framework import serializers
 
 from fleet.api import (
     MAX_SECONDS,
-    OBJECT_NAME_MAX_LENGTH,
     JsonBooleanField,
     JsonIntegerField,
     JsonStringField,
     NumberField,
+    ObjectNameField,
     ObjectNameSerializer,
     Pose2DSerializer,
     SpecSerializer,
     StrictSerializer,
-    object_name_validator,
     validate_free_json,
     validate_int64,
     validate_positive,
@@ -145,18 +144,14 @@ def node_description(kind: str) -> str:
 class MissionNodeSerializer(StrictSerializer):
     """One node of a mission tree: a name, a parent, and exactly one kind."""
 
-    name = JsonStringField(
+    name = ObjectNameField(
         required=False,
         allow_null=True,
         default=None,
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text='Unique in the tree; "root" is reserved. Default: its index in mission_tree ("0", "1").',
     )
-    parent = JsonStringField(
+    parent = ObjectNameField(
         default="root",
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text='A selector or sequence that appears earlier in mission_tree, or "root".',
     )
     selector = SelectorNodeSerializer(
@@ -222,9 +217,7 @@ def schema_constraints(result: dict, generator: Any, request: Any, public: bool)
 
 
 class MissionSpecSerializer(SpecSerializer):
-    robot = JsonStringField(
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
+    robot = ObjectNameField(
         help_text="Name of the robot to run the mission; it need not exist yet.",
     )
     mission_tree = MissionNodeSerializer(

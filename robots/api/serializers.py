@@ -8,15 +8,14 @@ from rest_framework import serializers
 
 from fleet.api import (
     MAX_SECONDS,
-    OBJECT_NAME_MAX_LENGTH,
     JsonBooleanField,
     JsonStringField,
     NumberField,
+    ObjectNameField,
     ObjectNameSerializer,
     Pose2DSerializer,
     SpecSerializer,
     StrictSerializer,
-    object_name_validator,
     validate_positive,
 )
 from robots.choices import (
@@ -52,22 +51,16 @@ class BatterySpecSerializer(StrictSerializer):
 class Vda5050IdentitySerializer(StrictSerializer):
     """How the robot is reached: topics <interface_name>/v<major>/<manufacturer>/<serial_number>/<topic>."""
 
-    interface_name = JsonStringField(
+    interface_name = ObjectNameField(
         required=False,
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text=f"First topic level; default {settings.VDA5050_INTERFACE_NAME!r} (setting).",
     )
-    manufacturer = JsonStringField(
+    manufacturer = ObjectNameField(
         required=False,
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text=f"Default {settings.VDA5050_MANUFACTURER!r} (setting).",
     )
-    serial_number = JsonStringField(
+    serial_number = ObjectNameField(
         required=False,
-        max_length=OBJECT_NAME_MAX_LENGTH,
-        validators=[object_name_validator],
         help_text="Default: the robot's name, as in the reference.",
     )
     version = serializers.ChoiceField(
