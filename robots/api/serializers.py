@@ -29,6 +29,7 @@ from robots.choices import (
     TeleopAction,
 )
 from robots.models import Robot
+from vda5050.models import MapStatus
 
 
 def _model_default(field: str) -> Any:
@@ -209,7 +210,7 @@ class RobotMapSerializer(serializers.Serializer):
     map_id = serializers.CharField()
     map_version = serializers.CharField()
     map_status = serializers.ChoiceField(
-        choices=["ENABLED", "DISABLED"], help_text="At most one version of a map_id is ENABLED."
+        choices=list(MapStatus), help_text="At most one version of a map_id is ENABLED."
     )
     map_description = serializers.CharField(allow_null=True)
 
