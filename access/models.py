@@ -10,6 +10,9 @@ from access.choices import WriteAction
 
 TOKEN_NAME_MAX_LENGTH = 50
 ACTOR_MAX_LENGTH = 200
+# What the admin's token form says when a usable token has the name already (Django's own message names
+# the constraint).
+DUPLICATE_NAME = "A usable token has this name already: revoke it first or pick another name."
 
 
 class ApiToken(AbstractAPIKey):
@@ -28,7 +31,10 @@ class ApiToken(AbstractAPIKey):
         verbose_name_plural = "API tokens"
         constraints = [
             models.UniqueConstraint(
-                fields=["name"], condition=Q(revoked=False), name="api_token_name_unique_while_usable"
+                fields=["name"],
+                condition=Q(revoked=False),
+                name="api_token_name_unique_while_usable",
+                violation_error_message=DUPLICATE_NAME,
             )
         ]
 

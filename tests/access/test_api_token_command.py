@@ -9,7 +9,7 @@ import pytest
 from django.core.management import CommandError, call_command
 from django.db import connection
 
-from access.models import ApiToken
+from access.models import DUPLICATE_NAME, ApiToken
 from tests.conftest import authenticated_client
 
 pytestmark = pytest.mark.django_db
@@ -143,3 +143,13 @@ def test_the_admin_creates_a_token_and_shows_it_once(admin_client):
     assert authenticated_client(key).get("/robot").status_code == 200
     assert authenticated_client(key).delete("/robot/r1").status_code == 403
     assert key not in admin_client.get(f"/admin/access/apitoken/{token.pk}/change/").content.decode()
+
+
+def test_the_admin_refuses_a_second_usable_token_of_the_same_name(admin_client):
+    create("wms")
+
+    response = admin_client.post("/admin/access/apitoken/add/", {"name": "wms"})
+
+    assert response.status_code == 200  # the form again, with its error
+    assert response.context["adminform"].form.non_field_errors() == [DUPLICATE_NAME]
+    assert ApiToken.objects.filter(name="wms").count() == 1
