@@ -183,6 +183,16 @@ def test_an_expired_token_answers_401():
     assert response.json() == {"detail": "Invalid token: unknown, revoked or expired."}
 
 
+def test_a_token_with_a_known_prefix_and_another_secret_answers_401():
+    _, key = api_token_create(name="real")
+    prefix, _, secret = key.partition(".")
+    forged = f"{prefix}.{secret[::-1]}"
+    assert forged != key
+
+    assert authenticated_client(forged).get("/robot").status_code == 401
+    assert authenticated_client(key).get("/robot").status_code == 200
+
+
 def test_a_token_records_when_it_was_last_used():
     token, key = api_token_create(name="seen")
     assert token.last_used is None
