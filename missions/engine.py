@@ -50,6 +50,7 @@ __all__ = [
     "apply_route_updates",
     "finish",
     "initial_node_status",
+    "next_leaf",
     "parse_tree",
     "set_leaf_state",
     "tick",
@@ -243,6 +244,18 @@ def finish(
         status = set_leaf_state(status, tip.name, state, error_msg)
     status[ROOT]["state"] = state
     return TickResult(node_status=status, mission_state=state, current_node=tip.index, current_leaf=None)
+
+
+def next_leaf(tree: Tree, node_status: Mapping[str, Mapping[str, Any]], leaf: str) -> Node | None:
+    """The leaf a tick starts once the running leaf ``leaf`` succeeds; None if the mission ends then.
+
+    Certain, not a guess: everything a tick evaluates on the way from ``leaf`` to the next leaf is a
+    composite or a constant, whose outcomes follow from the stored leaf states alone, and a leaf's state
+    changes only when it runs. A result of ``leaf`` other than success (failure, cancel), or the mission
+    ending from outside (cancel, timeout, deadline), is the only way another leaf, or none, comes next.
+    """
+    after = tick(tree, set_leaf_state(_copy_status(tree, node_status), leaf, MissionState.COMPLETED))
+    return after.leaf_to_start
 
 
 def set_leaf_state(
