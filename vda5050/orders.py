@@ -3,7 +3,9 @@
 Ids are derived from (mission, mission-tree node index, attempt), so building the same order twice gives
 identical content and a resend is recognised by the robot as a duplicate. Within one order, node ids are
 ``<orderId>-s<sequenceId>``, edge ids ``<orderId>-e<sequenceId>`` and action ids ``<orderId>-a<k>``;
-since orderIds differ between orders, all of them are unique across orders as well.
+since orderIds differ between orders, all of them are unique across orders as well. An order update may
+name its new nodes and edges after another key (``order_update``'s ``ids``: the dispatch step names them
+after the mission-tree leaf they carry), so every element id still says which leaf it belongs to.
 """
 
 from __future__ import annotations
@@ -197,15 +199,22 @@ def action_order(
 
 
 def order_update(
-    previous: OrderContent, *, waypoints: Sequence[Waypoint], horizon: Sequence[Waypoint] = ()
+    previous: OrderContent,
+    *,
+    waypoints: Sequence[Waypoint],
+    horizon: Sequence[Waypoint] = (),
+    ids: str | None = None,
 ) -> OrderContent:
-    """Extend ``previous`` (the latest update sent) from its decision point.
+    """Extend ``previous`` (the latest update sent, or the order as the robot holds it) from its decision
+    point.
 
-    The decision point (last released node) is repeated unchanged, older base elements are not resent,
-    the previous horizon is replaced by ``horizon`` (dropped when empty) and sequenceIds continue.
+    The decision point (last released node) is repeated unchanged, with its full content (as 3.0 asks;
+    2.x robots keep theirs), older base elements are not resent, the previous horizon is replaced by
+    ``horizon`` (dropped when empty) and sequenceIds continue. The new nodes and edges are named
+    ``<ids>-s<sequenceId>``/``<ids>-e<sequenceId>`` (default: the orderId).
     """
     decision_point = last_base_node(previous).model_copy(deep=True)
-    nodes, edges = _chain(previous.order_id, decision_point, waypoints, horizon)
+    nodes, edges = _chain(ids or previous.order_id, decision_point, waypoints, horizon)
     return OrderContent(
         order_id=previous.order_id,
         order_update_id=previous.order_update_id + 1,
@@ -213,6 +222,48 @@ def order_update(
         nodes=nodes,
         edges=edges,
     )
+
+
+def stitch(order: OrderContent, update: OrderContent) -> OrderContent:
+    """The order as a robot holds it once it took ``update``: ``order``'s base, then the update's nodes and
+    edges after the decision point, under the update's ids (what it replaced of the horizon is gone)."""
+    decision_point = last_base_node(order)
+    first = update.nodes[0]
+    if (update.order_id, first.node_id, first.sequence_id) != (
+        order.order_id,
+        decision_point.node_id,
+        decision_point.sequence_id,
+    ):
+        raise ValueError(
+            f"update {update.order_update_id} does not start at {order.order_id}'s decision point"
+        )
+    nodes = [node for node in order.nodes if node.sequence_id <= first.sequence_id] + update.nodes[1:]
+    edges = [edge for edge in order.edges if edge.sequence_id < first.sequence_id] + update.edges
+    return update.model_copy(update={"nodes": nodes, "edges": edges}, deep=True)
+
+
+def unstitch(order: OrderContent, sequence_id: int) -> tuple[OrderContent, OrderContent]:
+    """``stitch`` undone for an order whose last update extended it at the node ``sequence_id``: the order
+    as it was before that update (numbered one lower), and the update as it was sent."""
+    nodes = [node for node in order.nodes if node.sequence_id <= sequence_id]
+    if not nodes or nodes[-1].sequence_id != sequence_id or order.order_update_id < 1:
+        raise ValueError(f"order {order.order_id!r} was not extended at sequenceId {sequence_id}")
+    before = order.model_copy(
+        update={
+            "order_update_id": order.order_update_id - 1,
+            "nodes": nodes,
+            "edges": [edge for edge in order.edges if edge.sequence_id < sequence_id],
+        },
+        deep=True,
+    )
+    update = order.model_copy(
+        update={
+            "nodes": [node for node in order.nodes if node.sequence_id >= sequence_id],
+            "edges": [edge for edge in order.edges if edge.sequence_id > sequence_id],
+        },
+        deep=True,
+    )
+    return before, update
 
 
 def last_base_node(order: OrderContent) -> Node:

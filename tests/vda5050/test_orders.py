@@ -33,8 +33,10 @@ from vda5050.orders import (
     start_pause,
     start_teleop,
     state_request,
+    stitch,
     stop_pause,
     stop_teleop,
+    unstitch,
 )
 
 START = Pose(1.0, 1.0, math.pi / 4, "floor1")
@@ -305,6 +307,76 @@ def test_order_update_keeps_the_decision_point_content() -> None:
 
     assert update.nodes[0] == first.nodes[0]
     assert update.nodes[0] is not first.nodes[0]
+
+
+def test_order_update_names_its_new_elements_after_the_key_given() -> None:
+    first = route(WAYPOINTS[:1])
+    update = order_update(first, waypoints=WAYPOINTS[1:], ids=order_id("m-1", 4, 0))
+
+    assert update.order_id == first.order_id
+    assert update.nodes[0] == first.nodes[-1]  # the decision point keeps its id
+    assert [n.node_id for n in update.nodes[1:]] == ["m-1-n4-r0-s4", "m-1-n4-r0-s6"]
+    assert [e.edge_id for e in update.edges] == ["m-1-n4-r0-e3", "m-1-n4-r0-e5"]
+    assert [order_key(n.node_id).node_index for n in update.nodes] == [3, 4, 4]
+    assert check_order_graph(update) == []
+
+
+def test_stitch_gives_the_order_as_the_robot_holds_it() -> None:
+    first = route(WAYPOINTS[:1])
+    update = order_update(first, waypoints=WAYPOINTS[1:], ids=order_id("m-1", 4, 0))
+
+    held = stitch(first, update)
+
+    assert (held.order_id, held.order_update_id) == (first.order_id, 1)
+    assert held.nodes == first.nodes + update.nodes[1:]
+    assert held.edges == first.edges + update.edges
+    assert check_order_graph(held) == []
+
+
+def test_stitch_replaces_the_horizon() -> None:
+    first = route(WAYPOINTS[:1], horizon=WAYPOINTS[1:])
+    update = order_update(first, waypoints=WAYPOINTS[2:])
+
+    held = stitch(first, update)
+
+    assert [(n.sequence_id, n.released) for n in held.nodes] == [(0, True), (2, True), (4, True)]
+    assert held.nodes[2].node_position.x == WAYPOINTS[2].x
+    assert check_order_graph(held) == []
+
+
+def test_stitch_refuses_an_update_that_does_not_start_at_the_decision_point() -> None:
+    first = route(WAYPOINTS[:2])
+    update = order_update(route(WAYPOINTS[:1]), waypoints=WAYPOINTS[2:])
+
+    with pytest.raises(ValueError, match="decision point"):
+        stitch(first, update)
+
+
+def test_unstitch_gives_back_the_order_and_the_update_as_sent() -> None:
+    first = route(WAYPOINTS[:1])
+    second = order_update(first, waypoints=WAYPOINTS[1:2], ids=order_id("m-1", 4, 0))
+    third = order_update(second, waypoints=WAYPOINTS[2:], ids=order_id("m-1", 5, 0))
+    held = stitch(stitch(first, second), third)
+    decision_point = held.nodes[2].sequence_id
+
+    before, update = unstitch(stitch(second, third), decision_point)
+
+    assert (before, update) == (second, third)
+    assert unstitch(stitch(first, second), first.nodes[-1].sequence_id) == (first, second)
+    assert stitch(*unstitch(held, decision_point)) == held
+
+
+@pytest.mark.parametrize("sequence_id", [3, 8])
+def test_unstitch_refuses_a_node_the_order_does_not_have(sequence_id: int) -> None:
+    held = stitch(route(WAYPOINTS[:1]), order_update(route(WAYPOINTS[:1]), waypoints=WAYPOINTS[1:]))
+
+    with pytest.raises(ValueError, match="was not extended"):
+        unstitch(held, sequence_id)
+
+
+def test_unstitch_refuses_an_order_never_updated() -> None:
+    with pytest.raises(ValueError, match="was not extended"):
+        unstitch(route(WAYPOINTS[:2]), 2)
 
 
 def _valid() -> OrderContent:

@@ -1,4 +1,4 @@
-"""Everything the package builds validates against the official schemas of 2.0.0 and 2.1.0."""
+"""Everything the package builds validates against the official schemas of 2.0.0, 2.1.0 and 3.0.0."""
 
 from __future__ import annotations
 
@@ -53,6 +53,20 @@ BUILT: dict[str, Callable[[], Content]] = {
     "update": lambda: order_update(_route(), waypoints=WAYPOINTS[1:]),
     "update dropping horizon": lambda: order_update(_route(), waypoints=[]),
     "update with horizon only": lambda: order_update(_route(), waypoints=[], horizon=WAYPOINTS),
+    # What the dispatch step sends ahead: the next route leaf, its elements named after it, stitched at the
+    # last node of a new order and of an earlier update.
+    "update sent ahead": lambda: order_update(
+        route_order(**IDS, start=START, waypoints=WAYPOINTS[:1]), waypoints=WAYPOINTS, ids="mission-7-n3-r0"
+    ),
+    "update sent ahead of an update": lambda: order_update(
+        order_update(
+            route_order(**IDS, start=START, waypoints=WAYPOINTS[:1]),
+            waypoints=WAYPOINTS[1:],
+            ids="mission-7-n3-r0",
+        ),
+        waypoints=WAYPOINTS[:1],
+        ids="mission-7-n4-r0",
+    ),
     "instant actions": lambda: instant_actions(
         [
             builder(new_action_id("ia"))
