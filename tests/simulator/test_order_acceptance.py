@@ -226,6 +226,23 @@ def test_update_extends_the_base_while_driving_and_replaces_the_horizon() -> Non
     assert final.new_base_request is True
 
 
+@pytest.mark.parametrize("version", ["2.0.0", "2.1.0", "3.0.0"])
+def test_an_update_stitched_before_the_end_of_the_base_is_driven_on_without_stopping(version: str) -> None:
+    """What Dispatch does with consecutive route leaves: the robot passes the decision point driving."""
+    h = RobotHarness(f"carter01,0,0,0,map,0,80,,,,{version}")
+    first = route((1, 0), (2, 0))
+    h.send_order(first)
+    h.send_order(order_update(first, waypoints=[waypoint(2, 1), waypoint(3, 1)], ids="m1-n1-r0"))
+    assert h.state.order_update_id == 1 and not h.state.errors
+
+    states = h.states(h.run(10))
+    leaving = next(i for i, s in enumerate(states) if s.last_node_sequence_id >= 4)
+    assert all(s.driving for s in states[: leaving + 1] if s.node_states), "stopped on the way"
+    assert states[leaving].driving and states[leaving].node_states, "stopped at the decision point"
+    final = h.run_until(lambda s: not s.node_states and not s.driving)
+    assert (final.last_node_sequence_id, final.agv_position.x, final.agv_position.y) == (8, 3.0, 1.0)
+
+
 def test_update_after_the_base_is_done_must_start_at_the_last_node() -> None:
     h = RobotHarness()
     first = route((1, 0))
