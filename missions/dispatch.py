@@ -25,6 +25,7 @@ from vda5050.models import (
     ActionType,
     Error,
     InstantActionsContent,
+    Node,
     OrderContent,
     State,
 )
@@ -130,6 +131,10 @@ class StepResult:
     rejected: bool = False  # the robot rejected an order (counted by the caller)
     instant_actions_key: str | None = None  # the key the robot turned out to read, if it changed
     rules_applied: list[tuple[compat.Rule, str]] = field(default_factory=list)  # (rule, why), to record
+    # What the mission was between two leaves that ran and ended within this step (a route sent ahead that
+    # the robot drove to its end before a step saw it start), oldest first: stored before `mission`, so
+    # every leaf is seen RUNNING, as when each leaf was sent in its own step.
+    passed: list[MissionRecord] = field(default_factory=list)
 
 
 def step(
@@ -379,7 +384,7 @@ def _advance(
         _cancel(result, state, mission, tree, now)
         if mission.done or mission.needs_canceled:
             return
-    _tick(result, robot, state, mission, tree, now, settings)
+    _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
 
 
 def _ended_by_time_or_owner(
@@ -408,12 +413,64 @@ def _ended_by_time_or_owner(
 
 
 def _order_active(state: State | None, mission: MissionRecord) -> bool:
-    """The current leaf's order may still be executing on the robot."""
+    """The mission's order (with the order update sent ahead, if any) may still be executing on the robot."""
     if mission.order is None:
         return False
-    if state is None or state.order_id != mission.order["orderId"]:
-        return True  # not known to be accepted, it may still arrive
+    if (
+        state is None
+        or state.order_id != mission.order["orderId"]
+        or state.order_update_id < mission.order["orderUpdateId"]
+    ):
+        return True  # not known to be taken, it may still arrive
     return not vda_state.is_idle(state)
+
+
+# --- the mission's order, and the order update sent ahead -------------------------------------------------
+# A running route leaf whose next leaf is certain to be a route (`_extend`) has that leaf sent ahead, as an
+# order update of its own order: the robot drives on from the route's last node instead of stopping there
+# for a new order. The stored order (`MissionRecord.order`) is then both, stitched (`vda5050.orders.stitch`):
+# its ids are the update's, its nodes and edges the running leaf's then the next leaf's, each named after
+# its leaf (`<mission>-n<index>-r<attempt>-s<sequenceId>`), which is how a step tells them apart.
+
+
+@dataclass(frozen=True)
+class SentOrder:
+    """A running mission's stored order, read: the message that carries the running leaf (a new order, or
+    the order update that brought it), and the order update that carries the next leaf, if one was sent
+    ahead. `stored` is what the robot should hold: both, stitched."""
+
+    stored: OrderContent
+    leaf: int  # the running leaf's index in mission_tree
+    message: OrderContent
+    ahead: OrderContent | None = None
+    next_leaf: int | None = None
+
+    @property
+    def latest(self) -> OrderContent:
+        """The latest message: the one the robot must take, re-sent identically while it lacks it."""
+        return self.ahead or self.message
+
+
+def sent_order(order: dict[str, Any]) -> SentOrder:
+    """`MissionRecord.order` read into the running leaf's message and the order update sent ahead."""
+    stored = OrderContent.model_validate(order)
+    first, *rest = stored.nodes
+    leaf = _leaf_of(rest[0] if rest else first)
+    ahead = next((node for node in rest if _leaf_of(node) != leaf), None)
+    if ahead is None:
+        return SentOrder(stored, leaf, stored)
+    message, update = orders.unstitch(stored, ahead.sequence_id - 2)
+    return SentOrder(stored, leaf, message, update, _leaf_of(ahead))
+
+
+def _leaf_of(node: Node) -> int:
+    key = orders.order_key(node.node_id)
+    assert key is not None, f"node {node.node_id} was not built by the dispatch engine"
+    return key.node_index
+
+
+def _stored(order: OrderContent) -> dict[str, Any]:
+    return order.model_dump(mode="json", by_alias=True, exclude_none=True)
 
 
 def _follow_order(
@@ -425,55 +482,82 @@ def _follow_order(
     now: datetime,
     settings: DispatchSettings,
 ) -> None:
-    """Acceptance, resend, rejection, progress and errors of the current leaf's order."""
-    order = OrderContent.model_validate(mission.order)
-    leaf = next(node for node in tree.nodes if node.index == _order_node_index(order))
+    """Acceptance, resend, rejection, progress and errors of the running leaf's order, and acceptance,
+    resend and rejection of the order update sent ahead with the next leaf. A robot that refuses the update,
+    or lacks the order it extends, has it dropped (`_drop_ahead`): the next leaf gets an order of its own."""
+    sent = sent_order(mission.order)
+    leaf = tree.nodes[sent.leaf]
     if mission.node_status[leaf.name]["state"] != MissionState.RUNNING:
         return
     if not mission.order_accepted:
-        rejection = vda_state.order_rejection(state, order.order_id, order.order_update_id)
+        order_id = sent.stored.order_id
+        rejection = vda_state.order_rejection(state, order_id, sent.message.order_update_id)
         if rejection is not None:
             result.rejected = True
             _leaf_failed(mission, leaf, _describe([rejection]))
             return
-        if vda_state.order_accepted(state, order.order_id, order.order_update_id):
+        if sent.ahead is not None and vda_state.order_rejection(state, order_id, sent.ahead.order_update_id):
+            result.rejected = True
+            sent = _drop_ahead(mission, sent, state)
+        leaf_order_held = vda_state.order_accepted(state, order_id, sent.message.order_update_id)
+        if vda_state.order_accepted(state, order_id, sent.latest.order_update_id):
             mission.order_accepted = True
-        else:
-            if _resend_due(state, state_arrived_at, mission, tree, leaf, now, settings):
-                mission.order_sent_at = now
-                result.messages.append(Outgoing(order))
+        elif _resend_due(result, state, state_arrived_at, mission, tree, leaf, sent, now, settings):
+            if sent.ahead is not None and not leaf_order_held:
+                sent = _drop_ahead(mission, sent, state)  # no robot takes an update of an order it lacks
+            mission.order_sent_at = now
+            result.messages.append(Outgoing(sent.latest))
+        if not leaf_order_held:
             return
-    failures = _fatal_errors_for(state, order)
+    failures = _fatal_errors_for(state, sent.stored)
     if failures:
         _leaf_failed(mission, leaf, _describe(failures))
         if not vda_state.is_idle(state):
             _cancel_of_order(result, mission)  # a robot that keeps a failed order must not block the next
         return
     if leaf.kind == NodeKind.ACTION:
-        _follow_action(result, state, mission, leaf, order)
+        _follow_action(result, state, mission, leaf, sent.message)
     else:
-        _follow_route(state, mission, leaf, order)
+        _follow_route(state, mission, leaf, sent)
+
+
+def _drop_ahead(mission: MissionRecord, sent: SentOrder, state: State | None) -> SentOrder:
+    """Forget the order update sent ahead: the order is the running leaf's alone again. The next leaf gets
+    an order of its own when it starts; having been sent once (`attempts`), it is never sent ahead again."""
+    mission.order = _stored(sent.message)
+    mission.order_accepted = state is not None and vda_state.order_accepted(
+        state, sent.message.order_id, sent.message.order_update_id
+    )
+    return SentOrder(sent.message, sent.leaf, sent.message)
 
 
 def _resend_due(
+    result: StepResult,
     state: State,
     state_arrived_at: datetime | None,
     mission: MissionRecord,
     tree: engine.Tree,
     leaf: engine.Node,
+    sent: SentOrder,
     now: datetime,
     settings: DispatchSettings,
 ) -> bool:
     """An unacknowledged order is re-sent after a while, once a state that arrived well after it shows the
     robot lacks it, unless the robot may not take orders now or the order went stale with a route update
-    (then it is canceled, never re-sent). A state that may have left the robot before the order reached it
-    (a bridge behind on a busy fleet stores such states late) is no reason to resend: that would only add
-    load when there is too much."""
+    (then it is canceled, never re-sent), or is being canceled (3.0: no order update after cancelOrder). A
+    state that may have left the robot before the order reached it (a bridge behind on a busy fleet stores
+    such states late) is no reason to resend: that would only add load when there is too much. An order
+    update sent ahead is not re-sent to a robot that stopped at the end of the running leaf without it:
+    the next leaf decides what becomes of it (`_take_up_ahead`)."""
     if mission.order_sent_at is not None:
         if now - mission.order_sent_at < settings.order_resend:
             return False
         if not arrived_after_order(state_arrived_at, mission.order_sent_at):
             return False
+    if mission.needs_canceled or _pending_action(result, ActionType.CANCEL_ORDER) is not None:
+        return False
+    if sent.ahead is not None and _stopped_on(state, sent.message):
+        return False
     return vda_state.may_receive_orders(state) and not _route_update_pending(tree, mission, leaf, settings)
 
 
@@ -495,7 +579,10 @@ def _follow_action(
         result.robot_state = RobotState.TELEOP
 
 
-def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, order: OrderContent) -> None:
+def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, sent: SentOrder) -> None:
+    """A route or move is done once the robot has passed its last node: stopped there with nothing left to
+    do, or driving on into the order update sent ahead."""
+    order = sent.message
     last = order.nodes[-1]
     waypoints = order.nodes[1:]
     reached = [
@@ -507,8 +594,22 @@ def _follow_route(state: State, mission: MissionRecord, leaf: engine.Node, order
         )
         if mission.task_status.get(leaf.name) != exact:
             mission.task_status = {**mission.task_status, leaf.name: exact}
-    if vda_state.last_node_reached(state, order.order_id, last.sequence_id) and vda_state.is_idle(state):
+    if vda_state.last_node_reached(state, order.order_id, last.sequence_id) and (
+        vda_state.is_idle(state) or _ahead_held(state, sent)
+    ):
         mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.COMPLETED)
+
+
+def _stopped_on(state: State, order: OrderContent) -> bool:
+    """The robot holds `order` and has nothing left to do: it stopped at its end."""
+    return vda_state.order_accepted(state, order.order_id, order.order_update_id) and vda_state.is_idle(state)
+
+
+def _ahead_held(state: State, sent: SentOrder) -> bool:
+    """The robot holds the order update sent ahead."""
+    return sent.ahead is not None and vda_state.order_accepted(
+        state, sent.ahead.order_id, sent.ahead.order_update_id
+    )
 
 
 def _fatal_errors_for(state: State, order: OrderContent) -> list[Error]:
@@ -547,12 +648,6 @@ def _leaf_failed(mission: MissionRecord, leaf: engine.Node, message: str) -> Non
     mission.failure_reason = message
 
 
-def _order_node_index(order: OrderContent) -> int:
-    key = orders.order_key(order.order_id)
-    assert key is not None, f"order {order.order_id} was not built by the dispatch engine"
-    return key.node_index
-
-
 def _cancel(
     result: StepResult, state: State | None, mission: MissionRecord, tree: engine.Tree, now: datetime
 ) -> None:
@@ -573,6 +668,7 @@ def _tick(
     result: StepResult,
     robot: RobotView,
     state: State | None,
+    state_arrived_at: datetime | None,
     mission: MissionRecord,
     tree: engine.Tree,
     now: datetime,
@@ -593,11 +689,20 @@ def _tick(
         return
     leaf = tick.current_leaf
     assert leaf is not None
+    if (
+        tick.leaf_to_start is not None
+        and mission.order is not None
+        and sent_order(mission.order).next_leaf == leaf.index
+        and _take_up_ahead(result, robot, state, state_arrived_at, mission, tree, leaf, now, settings)
+    ):
+        return
     if _route_update_pending(tree, mission, leaf, settings):
         if _restart_updated_leaf(result, state, mission, leaf):
-            _tick(result, robot, state, mission, tree, now, settings)  # send the new order right away
+            # send the new order right away
+            _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
         return
     if tick.leaf_to_start is None:
+        _extend(result, robot, state, mission, tree, leaf, now)
         return
     if leaf.kind == NodeKind.NOTIFY:
         mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
@@ -620,16 +725,113 @@ def _tick(
     pose = vda_state.robot_telemetry(state).pose
     if pose is None:
         _leaf_failed(mission, leaf, "Robot does not report its position")
-        _tick(result, robot, state, mission, tree, now, settings)
+        _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
         return
     attempt = mission.attempts.get(leaf.name, 0)
     order = build_order(mission.name, leaf, attempt, pose, settings.start_deviation_xy)
     mission.attempts = {**mission.attempts, leaf.name: attempt + 1}
-    mission.order = order.model_dump(mode="json", by_alias=True, exclude_none=True)
+    mission.order = _stored(order)
     mission.order_sent_at = now
     mission.order_accepted = False
     mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
     result.messages.append(Outgoing(order))
+    _extend(result, robot, state, mission, tree, leaf, now)
+
+
+def _take_up_ahead(
+    result: StepResult,
+    robot: RobotView,
+    state: State | None,
+    state_arrived_at: datetime | None,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    leaf: engine.Node,
+    now: datetime,
+    settings: DispatchSettings,
+) -> bool:
+    """`leaf`, now to start, was sent ahead (`_extend`). Once the robot holds that order update, the leaf
+    runs on it with no order of its own, and the step goes on with it (True). If the robot refused it, or a
+    state that arrived well after it shows the robot without it, it is dropped and the leaf gets an order
+    of its own, as any other (False). Until a state tells which, the leaf waits (True)."""
+    assert mission.order is not None
+    sent = sent_order(mission.order)
+    assert sent.ahead is not None
+    if state is None:
+        return True
+    if _ahead_held(state, sent):
+        mission.order = _stored(sent.ahead)
+        mission.order_accepted = True
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
+        if not _route_update_pending(tree, mission, leaf, settings):  # else it starts over (`_tick`)
+            started = replace(mission)
+            _follow_order(result, state, state_arrived_at, mission, tree, now, settings)
+            if mission.node_status[leaf.name]["state"] != MissionState.RUNNING:
+                result.passed.append(started)
+        if not mission.done:
+            _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
+        return True
+    refused = vda_state.order_rejection(state, sent.ahead.order_id, sent.ahead.order_update_id) is not None
+    lacked = mission.order_sent_at is None or arrived_after_order(state_arrived_at, mission.order_sent_at)
+    if not (refused or lacked):
+        return True
+    result.rejected = result.rejected or refused
+    _drop_ahead(mission, sent, state)
+    return False
+
+
+def _extend(
+    result: StepResult,
+    robot: RobotView,
+    state: State | None,
+    mission: MissionRecord,
+    tree: engine.Tree,
+    leaf: engine.Node,
+    now: datetime,
+) -> None:
+    """Send the next leaf ahead, as an order update of the running route's order, when it is certain to
+    follow, so that the robot drives on from the route's last node instead of stopping there for an order
+    of its own. Its node state still changes when the running route is done (`_take_up_ahead`).
+
+    The rule, conservative (README, "Routes without stops"):
+    - the running leaf `leaf` is a route whose order went to the robot, which has not finished it;
+    - the leaf that starts once `leaf` succeeds (`engine.next_leaf`) is a route, with waypoints on maps the
+      robot has enabled, never sent before: nothing between the two can fail or branch (only composites
+      and constants lie between them, whose outcomes the stored states fix), and a leaf sent ahead once
+      that did not run on it gets an order of its own, never a second update;
+    - nothing is sent ahead already (one leaf ahead at most), no route update waits for `leaf` (checked
+      before), the mission is not being canceled and no cancelOrder is pending (3.0: no order update after
+      cancelOrder), and the robot is online and may take orders.
+    Whatever else ends `leaf` first (its failure, cancel, timeout, deadline, a route update, the robot
+    deleted) stops the order with cancelOrder, the update sent ahead with it.
+    """
+    if (
+        leaf.kind != NodeKind.ROUTE
+        or mission.order is None
+        or mission.needs_canceled
+        or state is None
+        or not robot.online
+        or not vda_state.may_receive_orders(state)
+        or _pending_action(result, ActionType.CANCEL_ORDER) is not None
+    ):
+        return
+    sent = sent_order(mission.order)
+    if sent.leaf != leaf.index or sent.ahead is not None or _stopped_on(state, sent.message):
+        return
+    following = engine.next_leaf(tree, mission.node_status, leaf.name)
+    if (
+        following is None
+        or following.kind != NodeKind.ROUTE
+        or not following.params["waypoints"]
+        or following.name in mission.attempts
+        or _maps_missing_for(state, [following]) is not None
+    ):
+        return
+    update = _order_update_for(mission.name, sent.stored, following, attempt=0)
+    mission.attempts = {**mission.attempts, following.name: 1}
+    mission.order = _stored(orders.stitch(sent.stored, update))
+    mission.order_sent_at = now
+    mission.order_accepted = False
+    result.messages.append(Outgoing(update))
 
 
 def build_order(
@@ -657,6 +859,17 @@ def build_order(
     )
 
 
+def _order_update_for(mission: str, previous: OrderContent, leaf: engine.Node, attempt: int) -> OrderContent:
+    """The order update that extends `previous` at its last node with route `leaf`, its new nodes and edges
+    named after the leaf."""
+    assert leaf.index is not None
+    return orders.order_update(
+        previous,
+        waypoints=[_waypoint(wp) for wp in leaf.params["waypoints"]],
+        ids=orders.order_id(mission, leaf.index, attempt),
+    )
+
+
 def _waypoint(pose: dict[str, Any]) -> orders.Waypoint:
     return orders.Waypoint(
         x=float(pose.get("x", 0.0)),
@@ -673,7 +886,8 @@ def _waypoint(pose: dict[str, Any]) -> orders.Waypoint:
 def _route_update_pending(
     tree: engine.Tree, mission: MissionRecord, leaf: engine.Node, settings: DispatchSettings
 ) -> bool:
-    """The running route's order was built from waypoints that an update has since replaced."""
+    """The running route's order (or the order update that brought it) was built from waypoints that an
+    update has since replaced."""
     if leaf.kind != NodeKind.ROUTE or mission.order is None or not mission.update_nodes:
         return False
     if (
@@ -681,12 +895,17 @@ def _route_update_pending(
         or mission.node_status[leaf.name]["state"] != MissionState.RUNNING
     ):
         return False
-    sent = OrderContent.model_validate(mission.order)
+    sent = sent_order(mission.order).message
+    key = orders.order_key(sent.nodes[-1].node_id)
+    assert key is not None
+    if sent.order_update_id > 0:  # brought by an order update, from the decision point it started at
+        before = sent.model_copy(
+            update={"order_update_id": sent.order_update_id - 1, "nodes": sent.nodes[:1], "edges": []}
+        )
+        return _order_update_for(mission.name, before, leaf, key.attempt) != sent
     first = sent.nodes[0].node_position
     assert first is not None
     start = orders.Pose(first.x, first.y, first.theta or 0.0, first.map_id)
-    key = orders.order_key(sent.order_id)
-    assert key is not None
     expected = build_order(mission.name, leaf, key.attempt, start, first.allowed_deviation_xy or 0.0)
     return expected != sent
 
@@ -864,10 +1083,12 @@ def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
 
     Whether the order is one of ours and the update the latest is for the bridge's acceptance write to
     check (`missions.robot_step.mission_orders_accepted`). Leaving one order unfinished for another is not
-    taking an order only: the step must see the first one end.
+    taking an order only: the step must see the first one end. Nor is taking an update of the order the
+    robot had stopped at the end of: the route that update carries (one sent ahead that reached the robot
+    late) starts running now, and its step must see that.
     """
     if not after.busy or after.events != before.events:
         return False
     if before.busy:
         return after.order_id == before.order_id and after.order_update_id > before.order_update_id
-    return (after.order_id, after.order_update_id) != (before.order_id, before.order_update_id)
+    return after.order_id != before.order_id

@@ -304,7 +304,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         outcome.rejections += int(result.rejected)
         view = replace(view, state=result.robot_state)
         if mission is not None and result.mission is not None:
-            _store_mission(mission, result.mission)
+            stored = mission
+            for passed in result.passed:  # each its own write, for the change feed: a leaf seen RUNNING
+                _store_mission(stored, passed)
+                stored = passed
+            _store_mission(stored, result.mission)
             if result.notify is not None:
                 outcome.notifies.append((mission.name, result.notify))
             if result.mission.done:

@@ -16,6 +16,8 @@ import pytest
 from django.db import connection
 from django.utils import timezone
 
+from changes.choices import ChangeKind
+from changes.models import Change
 from fleet import livestate
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.dispatch import state_digest
@@ -30,6 +32,7 @@ from tests.dispatch.builders import check_schema, finished, on_order, robot_stat
 from tests.factories import TEST_ACTOR
 from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
+from vda5050.orders import stitch
 from vda5050.topics import Topic
 from workers.stepper import run_step
 
@@ -340,6 +343,95 @@ def test_a_running_mission_deleted_is_canceled_then_removed_and_the_next_one_sta
 
     assert not Mission.objects.filter(name="m1").exists()
     assert [o.order_id for o in orders(outcome)] == ["m2-n0-r0"]
+
+
+def two_routes(name: str, robot: Robot) -> Mission:
+    waypoint = {"theta": 0.0, "map_id": "map"}
+    return create(
+        name,
+        robot,
+        {"name": "r1", "route": {"waypoints": [{"x": 5.0, "y": 2.0, **waypoint}]}},
+        {"name": "r2", "route": {"waypoints": [{"x": 5.0, "y": 6.0, **waypoint}]}},
+    )
+
+
+def test_a_route_certain_to_follow_goes_out_right_behind_the_first_order_as_its_update(robot: Robot) -> None:
+    InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
+    two_routes("m1", robot)
+
+    outcome = step(robot)
+
+    first, update = orders(outcome)
+    assert header_ids(outcome) == [(Topic.ORDER, 0), (Topic.ORDER, 1)]
+    assert (update.order_id, update.order_update_id, update.nodes[0]) == (first.order_id, 1, first.nodes[-1])
+    mission = Mission.objects.get(name="m1")
+    assert mission.order == stitch(first, update).model_dump(mode="json", by_alias=True, exclude_none=True)
+    assert (mission.order_accepted, mission.attempts) == (False, {"r1": 1, "r2": 1})
+    assert (mission.node_status["r1"]["state"], mission.node_status["r2"]["state"]) == ("RUNNING", "PENDING")
+    assert [(m.topic, m.header_id) for m in outcome.wire] == [(Topic.ORDER, 0), (Topic.ORDER, 1)]
+
+
+def test_the_robot_passing_the_end_of_the_first_route_runs_the_second_in_a_two_round_trip_step(
+    robot: Robot, tmp_path: Path
+) -> None:
+    """Leaf by leaf, as before, and no dearer: the step reads and writes as a step always does."""
+    InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
+    two_routes("m1", robot)
+    first, update = orders(step(robot))
+    held = stitch(first, update)
+    put_state(robot, header_id=2, state=on_order(held, 2, driving=True))
+
+    with protocol_trace(tmp_path / "trace") as trace:
+        outcome = step(robot, after=1.0)
+
+    assert round_trips(trace.read_text()) == 2
+    assert outcome.messages == []
+    mission = Mission.objects.get(name="m1")
+    assert (mission.node_status["r1"]["state"], mission.node_status["r2"]["state"]) == (
+        "COMPLETED",
+        "RUNNING",
+    )
+    assert (mission.current_node, mission.order_accepted) == (1, True)
+    assert mission.order == update.model_dump(mode="json", by_alias=True, exclude_none=True)
+
+    put_state(robot, header_id=3, state=finished(held))
+    step(robot, after=2.0)
+    assert Mission.objects.get(name="m1").state == MissionState.COMPLETED
+
+
+def test_a_route_sent_ahead_that_ran_and_ended_within_one_step_is_seen_running(robot: Robot) -> None:
+    """Each leaf has its RUNNING line in the change feed (the watch streams), as with an order per leaf."""
+    two_routes("m1", robot)
+    first, update = orders(step(robot))
+    put_state(robot, header_id=2, state=finished(stitch(first, update)))
+
+    step(robot, after=1.0)
+
+    images = [c.image for c in Change.objects.filter(kind=ChangeKind.MISSION, name="m1").order_by("id")]
+    leaf_states = [(i["node_status"]["r1"]["state"], i["node_status"]["r2"]["state"]) for i in images]
+    assert leaf_states[-2:] == [("COMPLETED", "RUNNING"), ("COMPLETED", "COMPLETED")]
+    assert Mission.objects.get(name="m1").state == MissionState.COMPLETED
+
+
+def test_a_mission_canceled_in_the_middle_of_an_extended_order_cancels_it_all(robot: Robot) -> None:
+    two_routes("m1", robot)
+    first, update = orders(step(robot))
+    held = stitch(first, update)
+    put_state(robot, header_id=2, state=on_order(held, 0, driving=True))
+    step(robot, after=1.0)
+    mission_cancel(actor=TEST_ACTOR, mission=Mission.objects.get(name="m1"))
+
+    outcome = step(robot, after=2.0)
+
+    [cancel] = InstantAction.objects.filter(robot=robot, action_type="cancelOrder")
+    assert cancel.action_id.startswith(f"{first.order_id}-cancel")
+    assert orders(outcome) == []
+    confirmed = on_order(held, 0, extra_actions=[(cancel.action_id, ActionStatus.FINISHED)])
+    put_state(robot, header_id=3, state=confirmed.model_copy(update={"node_states": [], "edge_states": []}))
+    step(robot, after=3.0)
+    mission = Mission.objects.get(name="m1")
+    assert mission.state == MissionState.CANCELED
+    assert (mission.node_status["r1"]["state"], mission.node_status["r2"]["state"]) == ("CANCELED", "PENDING")
 
 
 def test_a_robot_deleted_during_a_mission_fails_it_and_is_removed_with_its_live_state(robot: Robot) -> None:

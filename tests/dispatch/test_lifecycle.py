@@ -315,9 +315,11 @@ def test_an_update_of_a_later_route_does_not_disturb_the_running_one() -> None:
     running = dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
     assert (running.actions, running.messages) == ([], [])
 
+    # r2 had gone ahead with its old waypoints, and the robot drove them: r2 starts over with the new ones.
     result = dispatcher.step(finished(dispatcher.order), after=1.0)
     [order] = orders_sent(result)
-    assert (order.order_id, order.nodes[-1].node_position.x) == ("m1-n1-r0", 9.0)
+    assert (order.order_id, order.nodes[-1].node_position.x) == ("m1-n1-r1", 9.0)
+    assert (dispatcher.node("r1"), dispatcher.node("r2")) == (MissionState.COMPLETED, MissionState.RUNNING)
 
 
 def test_an_update_equal_to_the_sent_route_changes_nothing() -> None:

@@ -15,6 +15,7 @@ from tests.dispatch.builders import (
     finished,
     instant_actions_sent,
     mission,
+    move,
     orders_sent,
     robot_state,
     route,
@@ -90,7 +91,7 @@ def test_a_robot_that_reports_no_maps_is_not_held(maps) -> None:
 def test_a_later_route_leaf_whose_map_went_away_waits_and_goes_once_it_is_back() -> None:
     enabled = ("map", "1", MapStatus.ENABLED)
     hall = ("hall", "1", MapStatus.ENABLED)
-    run = Dispatcher(mission(route("a"), route("b", map_id="hall")))
+    run = Dispatcher(mission(move("a"), route("b", map_id="hall")))  # a route after a route goes ahead
     run.step(with_maps(IDLE_STATE, enabled, hall))
     first = run.order
     assert run.mission is not None and run.mission.state == MissionState.RUNNING

@@ -90,7 +90,7 @@ def test_a_move_completes_at_its_target_node() -> None:
 
 
 def test_a_completed_leaf_sends_the_next_leafs_order_and_moves_current_node() -> None:
-    dispatcher = started(route("r1"), route("r2", (8.0, 9.0)))
+    dispatcher = started(move("r1"), route("r2", (8.0, 9.0)))  # a route after a route goes ahead
 
     result = dispatcher.step(finished(dispatcher.order), after=1.0)
 
@@ -362,7 +362,7 @@ def test_the_next_leafs_order_waits_until_the_robot_is_idle() -> None:
 
 
 def test_the_next_leafs_order_starts_where_the_robot_now_is() -> None:
-    dispatcher = started(route("r1"), route("r2"))
+    dispatcher = started(move("r1"), route("r2"))
 
     result = dispatcher.step(finished(dispatcher.order, pose=(5.0, 6.0, 0.0, "map")), after=1.0)
 
@@ -371,7 +371,7 @@ def test_the_next_leafs_order_starts_where_the_robot_now_is() -> None:
 
 
 def test_the_next_leafs_order_waits_while_the_robot_is_offline() -> None:
-    dispatcher = started(route("r1"), route("r2"))
+    dispatcher = started(move("r1"), route("r2"))
     dispatcher.robot = replace(dispatcher.robot, online=False)
 
     result = dispatcher.step(finished(dispatcher.order), after=1.0)

@@ -96,7 +96,24 @@ SCENARIOS: dict[str, Scenario] = {
     "progress": _on_running(
         [route("r", (1.0, 0.0), (2.0, 0.0), allowedDeviationXY=0.0)], lambda d: on_order(d.order, 2)
     ),
-    "route-done-next-order": _on_running([route("r1"), route("r2")], lambda d: finished(d.order)),
+    "route-done-next-order": _on_running([route("r1"), action("a")], lambda d: finished(d.order)),
+    "route-sent-ahead": lambda: (Dispatcher(mission(route("r1"), route("r2"))), IDLE_STATE, 0.0),
+    "ahead-taken": _on_running([route("r1"), route("r2")], lambda d: on_order(d.order, 2)),
+    "ahead-refused": _on_running(
+        [route("r1"), route("r2")],
+        lambda d: on_order(
+            dispatch.sent_order(d.mission.order).message,
+            0,
+            errors=[
+                error("orderUpdateError", ErrorLevel.WARNING, orderId=d.order.order_id, orderUpdateId="1")
+            ],
+        ),
+    ),
+    "ahead-lacked": _on_running(
+        [route("r1"), route("r2")],
+        lambda d: finished(dispatch.sent_order(d.mission.order).message),
+        after=2.0,
+    ),
     "mission-completed": _on_running([route("r")], lambda d: finished(d.order)),
     "rejected": _on_running(
         [route("r")], lambda d: robot_state(errors=[error("orderError", orderId=d.order.order_id)])
@@ -379,6 +396,11 @@ def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: St
             robot_state(order_id="m1-n0-r0", last_node_sequence_id=2),
             TAKEN_M1,
             id="the-finished-order-again",
+        ),
+        pytest.param(
+            robot_state(order_id="m1-n0-r0", last_node_sequence_id=2),
+            robot_state(order_id="m1-n0-r0", order_update_id=1, last_node_sequence_id=2, node_states=[4]),
+            id="an-update-of-the-finished-order",
         ),
     ],
 )
