@@ -436,7 +436,7 @@ class Bench:
     def _finish_order(self, load: Load, order_id: str) -> None:
         if load.robot.order_id != order_id or self.stopped:
             return  # canceled meanwhile, or the run is over
-        load.robot.finish()
+        legs = load.robot.finish()
         now = time.monotonic()
         self._publish_state(load)
         self.counts["orders_finished"] += 1
@@ -444,7 +444,7 @@ class Bench:
         self.window.orders_finished += in_window
         mission = _mission_of(order_id)
         if mission in load.progress:
-            load.progress[mission] += 1
+            load.progress[mission] += legs
             if load.progress[mission] >= self.options.nodes:
                 self._forget(load, mission)
                 self.counts["missions_completed"] += 1

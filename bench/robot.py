@@ -2,7 +2,9 @@
 
 The state body (everything but ``headerId`` and ``timestamp``) is serialized once per change, so a
 periodic state costs one bytes formatting. Orders are read as plain dicts: the robot never rejects one,
-so it needs nothing beyond ids, sequence ids and the last node's position.
+so it needs nothing beyond ids, sequence ids and the last node's position. An order update of the order it
+executes (same orderId, a higher orderUpdateId: the server sends a route certain to follow ahead) is
+stitched on, and finishes with it.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ class OrderError(ValueError):
 class FakeRobot:
     """One robot's protocol state; the caller publishes what it returns and decides when orders finish."""
 
-    __slots__ = ("_body", "_order", "_state", "header_ids", "manufacturer", "serial", "topic")
+    __slots__ = ("_body", "_legs", "_order", "_state", "header_ids", "manufacturer", "serial", "topic")
 
     def __init__(self, *, serial: str, manufacturer: str, topic_prefix: str, x: float, y: float) -> None:
         self.serial = serial
@@ -58,6 +60,7 @@ class FakeRobot:
         self.topic = f"{topic_prefix}/{serial}/"  # + "state", "order", ...
         self.header_ids = {"state": 0, "connection": 0, "factsheet": 0}
         self._order: dict[str, Any] | None = None  # the order being executed, until it finishes
+        self._legs = 0  # the messages (order and updates stitched on) it consists of
         self._state: dict[str, Any] = {
             "version": VERSION,
             "manufacturer": manufacturer,
@@ -126,7 +129,11 @@ class FakeRobot:
         state = self._state
         if state["orderId"] == order_id and state["orderUpdateId"] == update_id:
             return False
+        if self._order is not None and state["orderId"] == order_id and update_id > state["orderUpdateId"]:
+            self._stitch(order, update_id, node_states, edge_states, action_states)
+            return True
         self._order = order
+        self._legs = 1
         state.update(
             orderId=order_id,
             orderUpdateId=update_id,
@@ -140,8 +147,30 @@ class FakeRobot:
         self._serialize()
         return True
 
-    def finish(self) -> None:
-        """The order is done: at its last node, nothing left, every action FINISHED."""
+    def _stitch(
+        self,
+        update: dict[str, Any],
+        update_id: int,
+        node_states: list[dict[str, Any]],
+        edge_states: list[dict[str, Any]],
+        action_states: list[dict[str, Any]],
+    ) -> None:
+        """Extend the order being executed with an update that starts at its last node."""
+        assert self._order is not None
+        self._order = {**self._order, "nodes": self._order["nodes"] + update["nodes"][1:]}
+        self._legs += 1
+        state = self._state
+        state.update(
+            orderUpdateId=update_id,
+            nodeStates=state["nodeStates"] + node_states,
+            edgeStates=state["edgeStates"] + edge_states,
+            actionStates=state["actionStates"] + action_states,
+        )
+        self._serialize()
+
+    def finish(self) -> int:
+        """The order is done: at its last node, nothing left, every action FINISHED. Returns how many
+        messages it consisted of (the order and the updates stitched on)."""
         assert self._order is not None, "finish() without an accepted order"
         last = self._order["nodes"][-1]
         state = self._state
@@ -164,6 +193,7 @@ class FakeRobot:
             )
         self._order = None
         self._serialize()
+        return self._legs
 
     def instant_actions(self, message: dict[str, Any]) -> list[str]:
         """Run the instant actions (all FINISHED at once); returns their types, for the caller to act on."""

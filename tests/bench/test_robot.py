@@ -79,6 +79,29 @@ def test_a_resent_order_is_ignored_and_a_new_one_replaces_the_finished_one() -> 
     assert state(fake)["orderId"] == "m-n2-r0"
 
 
+def test_an_update_of_the_running_order_is_stitched_on_and_finishes_with_it() -> None:
+    fake = robot()
+    first = route_order(1, (3, 4))
+    content = orders.route_order(
+        mission="m",
+        node_index=1,
+        attempt=0,
+        start=orders.Pose(2.0, 4.0, 0.0, "map"),
+        waypoints=[orders.Waypoint(3, 4, 0.0, "map")],
+    )
+    update = wire(orders.order_update(content, waypoints=[orders.Waypoint(3, 6, 0.0, "map")], ids="m-n2-r0"))
+    assert fake.accept(first) and fake.accept(update)
+    assert not fake.accept(update)
+    both = state(fake)
+    assert (both["orderUpdateId"], both["lastNodeSequenceId"]) == (1, 0)
+    assert [node["sequenceId"] for node in both["nodeStates"]] == [2, 4]
+    assert [edge["sequenceId"] for edge in both["edgeStates"]] == [1, 3]
+
+    assert fake.finish() == 2
+    done = state(fake)
+    assert (done["lastNodeId"], done["lastNodeSequenceId"], done["agvPosition"]["y"]) == ("m-n2-r0-s4", 4, 6)
+
+
 def test_order_actions_wait_and_finish_with_the_order() -> None:
     fake = robot()
     order = wire(

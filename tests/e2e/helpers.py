@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+import uuid
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
+import orjson
+import paho.mqtt.client as mqtt
+from django.conf import settings
 from rest_framework.test import APIClient
 
 from tests.waiting import wait_for
@@ -131,3 +136,45 @@ class StatusRecorder:
         self._stop.set()
         self._thread.join(timeout=10)
         return self.sequence
+
+
+class Tap:
+    """A robot's orders, instant actions and states as the broker passed them on, in that order."""
+
+    def __init__(self, serial: str) -> None:
+        self.messages: list[tuple[str, dict[str, Any]]] = []
+        self._lock = threading.Lock()
+        ready = threading.Event()
+        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"tap-{uuid.uuid4().hex[:8]}")
+        topics = [(f"+/+/+/{serial}/{topic}", 0) for topic in ("order", "instantActions", "state")]
+        self.client.on_connect = lambda client, *args: client.subscribe(topics)
+        self.client.on_subscribe = lambda *args: ready.set()
+        self.client.on_message = self._on_message
+        self.client.connect(settings.MQTT_HOST, settings.MQTT_PORT)
+        self.client.loop_start()
+        assert ready.wait(10)
+
+    def _on_message(self, client: mqtt.Client, userdata: Any, message: mqtt.MQTTMessage) -> None:
+        with self._lock:
+            self.messages.append((message.topic.rsplit("/", 1)[-1], orjson.loads(message.payload)))
+
+    def of(self, kind: str) -> list[dict[str, Any]]:
+        with self._lock:
+            return [data for topic, data in self.messages if topic == kind]
+
+    def seen(self) -> list[tuple[str, dict[str, Any]]]:
+        with self._lock:
+            return list(self.messages)
+
+    def close(self) -> None:
+        self.client.loop_stop()
+        self.client.disconnect()
+
+
+@contextmanager
+def tapped(serial: str) -> Iterator[Tap]:
+    tap = Tap(serial)
+    try:
+        yield tap
+    finally:
+        tap.close()

@@ -16,6 +16,7 @@ from tests.e2e.helpers import (
     get,
     post_mission,
     route,
+    tapped,
     wait_mission,
     wait_mission_where,
     wait_robot,
@@ -151,6 +152,43 @@ def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting
         shown = get(api, "robot", robot)["vda5050"]
         assert shown["instant_actions_key"] == "instantActions"
         assert "legacy_instant_actions_key" in [rule["rule"] for rule in shown["compatibility_rules"]]
+    finally:
+        agv.stop()
+        print(agv.output())
+
+
+def test_the_real_vda_5050_lib_1_4_agv_takes_the_next_route_as_an_order_update(
+    api, unique, stack, vda5050_lib, tmp_path
+):
+    """Routes without stops against a real stack: it stitches the update at the first route's last node."""
+    robot = unique("npmroutes")
+    agv = Process(
+        "vda-5050-lib",
+        [
+            "node",
+            str(Path(__file__).with_name("npm") / "vda5050_lib_agv.js"),
+            f"mqtt://{settings.MQTT_HOST}:{settings.MQTT_PORT}",
+            "uagv",
+            "RobotCompany",
+            robot,
+        ],
+        {**stack.env, "NODE_PATH": str(vda5050_lib)},
+        tmp_path / "agv.log",
+    )
+    agv.start()
+    try:
+        create_robot(api, robot)
+        mission = unique("two")
+        with tapped(robot) as tap:
+            post_mission(api, mission, robot, [route("a", (3, 0)), route("b", (3, 3))])
+            status = wait_mission(api, mission)["status"]
+            states = tap.of("state")
+
+        assert status["state"] == "COMPLETED", status
+        [order_id] = {o["orderId"] for o in tap.of("order")}
+        assert any(s["orderId"] == order_id and s["orderUpdateId"] == 1 and s["nodeStates"] for s in states)
+        pose = get(api, "robot", robot)["status"]["pose"]
+        assert (round(pose["x"]), round(pose["y"])) == (3, 3)
     finally:
         agv.stop()
         print(agv.output())

@@ -142,6 +142,26 @@ def parse_order_id(order_id: str) -> tuple[str, int, int] | None:
     return match["mission"], int(match["node"]), int(match["attempt"])
 
 
+def carried_leaf(order: Mapping[str, Any]) -> str:
+    """The leaf an order message carries, as `<mission>-n<index>-r<attempt>`: a new order's orderId, or,
+    for an order update (a route the engine sent ahead), the key its new nodes are named after."""
+    order_id = str(order.get("orderId"))
+    nodes = order.get("nodes") or ()
+    if not int(order.get("orderUpdateId") or 0) or len(nodes) < 2:
+        return order_id
+    return str(nodes[-1].get("nodeId")).rpartition("-s")[0] or order_id
+
+
+def updates_taken(messages: Sequence[WireMessage]) -> dict[tuple[str, str], int]:
+    """(robot, orderId) -> the highest orderUpdateId the robot's states showed for that order."""
+    taken: dict[tuple[str, str], int] = {}
+    for message in messages:
+        if message.kind == "state" and message.data is not None:
+            key = (message.serial, str(message.data.get("orderId")))
+            taken[key] = max(taken.get(key, 0), int(message.data.get("orderUpdateId") or 0))
+    return taken
+
+
 def busy(state: Mapping[str, Any]) -> bool:
     """A VDA 5050 state shows the robot busy: nodes or edges left, or an action not FINISHED/FAILED."""
     return bool(
@@ -320,17 +340,23 @@ def check_leaves(
     API: a COMPLETED mission has every node (and root) COMPLETED in node_status. Wire: in arrival order,
     a mission's orders never go back to an earlier leaf, each leaf has a single orderId (a second attempt
     is the leaf run again), every order belongs to a leaf of a posted mission, and a COMPLETED mission
-    during which the observer never looked away had an order on the wire for each of its leaves."""
+    during which the observer never looked away had an order on the wire for each of its leaves. A leaf
+    sent ahead in an order update (`carried_leaf`) counts only if the robot's states show it took that
+    update: one it never took (lost, refused) ran nothing, and the leaf gets an order of its own."""
     result = CheckResult("leaves in order, never twice")
     by_name = {m.name: m for m in posted}
+    taken = updates_taken(messages)
     wire: dict[str, list[tuple[int, str, WireMessage]]] = defaultdict(list)
     for message in messages:
         if message.kind != "order" or message.data is None:
             continue
-        order_id = str(message.data.get("orderId"))
+        order_id = carried_leaf(message.data)
         parsed = parse_order_id(order_id)
         if parsed is None or parsed[0] not in by_name:
             result.problems.append(f"robot {message.serial}: order {order_id} of no posted mission")
+            continue
+        update = int(message.data.get("orderUpdateId") or 0)
+        if update and taken.get((message.serial, str(message.data.get("orderId"))), 0) < update:
             continue
         wire[parsed[0]].append((parsed[1], order_id, message))
     for mission in posted:

@@ -203,6 +203,56 @@ def test_leaf_after_a_later_one_or_twice_fails():
     assert "leaf a reached 2 times, orders ['m1-n0-r0', 'm1-n0-r1']" in text
 
 
+def ahead(t: float, serial: str, order_id: str, header_id: int, leaf: str, update: int = 1) -> WireMessage:
+    """An order update carrying the leaf `leaf` (`<mission>-n<index>-r<attempt>`) sent ahead."""
+    nodes = [
+        {"nodeId": f"{order_id}-s2", "sequenceId": 2, "released": True, "actions": []},
+        {"nodeId": f"{leaf}-s4", "sequenceId": 4, "released": True, "actions": []},
+    ]
+    return order(t, serial, order_id, header_id, update, nodes=nodes)
+
+
+def taken(t: float, serial: str, order_id: str, update: int) -> WireMessage:
+    message = state(t, serial, order_id, busy=True)
+    return WireMessage(message.t, message.topic, {**message.data, "orderUpdateId": update})
+
+
+def test_a_leaf_sent_ahead_and_taken_counts_as_reached():
+    messages = [order(1, "r1", "m1-n0-r0", 0), ahead(1.1, "r1", "m1-n0-r0", 1, "m1-n1-r0")]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+
+    assert "no order was seen for leaves ['b']" in "\n".join(
+        checks.check_leaves([M1], final, messages, []).problems
+    )
+    result = checks.check_leaves([M1], final, [*messages, taken(2, "r1", "m1-n0-r0", 1)], [])
+    assert result.ok, result.problems
+
+
+def test_a_leaf_sent_ahead_never_taken_then_ordered_on_its_own_is_reached_once():
+    messages = [
+        order(1, "r1", "m1-n0-r0", 0),
+        ahead(1.1, "r1", "m1-n0-r0", 1, "m1-n1-r0"),
+        taken(2, "r1", "m1-n0-r0", 0),
+        order(3, "r1", "m1-n0-r0", 2),  # the robot lacked the first order: sent again
+        order(4, "r1", "m1-n1-r1", 3),
+    ]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+    result = checks.check_leaves([M1], final, messages, [])
+    assert result.ok, result.problems
+
+
+def test_a_leaf_sent_ahead_and_taken_then_ordered_again_is_reached_twice():
+    messages = [
+        order(1, "r1", "m1-n0-r0", 0),
+        ahead(1.1, "r1", "m1-n0-r0", 1, "m1-n1-r0"),
+        taken(2, "r1", "m1-n0-r0", 1),
+        order(4, "r1", "m1-n1-r1", 2),
+    ]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+    text = "\n".join(checks.check_leaves([M1], final, messages, []).problems)
+    assert "leaf b reached 2 times, orders ['m1-n1-r0', 'm1-n1-r1']" in text
+
+
 def test_completed_mission_with_a_leaf_not_completed_or_never_ordered_fails():
     final = {"m1": mission_object("COMPLETED", {**DONE, "b": "PENDING"})}
     result = checks.check_leaves([M1], final, [order(1, "r1", "m1-n0-r0", 0)], [])
