@@ -4,6 +4,8 @@ simulator processes; every order and instant action recorded and validated again
 
 import shutil
 import subprocess
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -121,10 +123,9 @@ def vda5050_lib(tmp_path_factory) -> Path:
     return prefix / "node_modules"
 
 
-def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting_changed(
-    api, unique, stack, vda5050_lib, tmp_path
-):
-    robot = unique("npmagv")
+@contextmanager
+def vda5050_lib_agv(robot: str, stack, node_modules: Path, tmp_path: Path) -> Iterator[Process]:
+    """The real vda-5050-lib 1.4.0 virtual AGV as robot `robot` on the test broker, while the block runs."""
     agv = Process(
         "vda-5050-lib",
         [
@@ -135,11 +136,22 @@ def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting
             "RobotCompany",
             robot,
         ],
-        {**stack.env, "NODE_PATH": str(vda5050_lib)},
+        {**stack.env, "NODE_PATH": str(node_modules)},
         tmp_path / "agv.log",
     )
     agv.start()
     try:
+        yield agv
+    finally:
+        agv.stop()
+        print(agv.output())
+
+
+def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting_changed(
+    api, unique, stack, vda5050_lib, tmp_path
+):
+    robot = unique("npmagv")
+    with vda5050_lib_agv(robot, stack, vda5050_lib, tmp_path):
         create_robot(api, robot)
         mission = unique("far")
         post_mission(api, mission, robot, [route("far", (60, 0))])
@@ -152,9 +164,6 @@ def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting
         shown = get(api, "robot", robot)["vda5050"]
         assert shown["instant_actions_key"] == "instantActions"
         assert "legacy_instant_actions_key" in [rule["rule"] for rule in shown["compatibility_rules"]]
-    finally:
-        agv.stop()
-        print(agv.output())
 
 
 def test_the_real_vda_5050_lib_1_4_agv_takes_the_next_route_as_an_order_update(
@@ -162,21 +171,7 @@ def test_the_real_vda_5050_lib_1_4_agv_takes_the_next_route_as_an_order_update(
 ):
     """Routes without stops against a real stack: it stitches the update at the first route's last node."""
     robot = unique("npmroutes")
-    agv = Process(
-        "vda-5050-lib",
-        [
-            "node",
-            str(Path(__file__).with_name("npm") / "vda5050_lib_agv.js"),
-            f"mqtt://{settings.MQTT_HOST}:{settings.MQTT_PORT}",
-            "uagv",
-            "RobotCompany",
-            robot,
-        ],
-        {**stack.env, "NODE_PATH": str(vda5050_lib)},
-        tmp_path / "agv.log",
-    )
-    agv.start()
-    try:
+    with vda5050_lib_agv(robot, stack, vda5050_lib, tmp_path):
         create_robot(api, robot)
         mission = unique("two")
         with tapped(robot) as tap:
@@ -189,6 +184,3 @@ def test_the_real_vda_5050_lib_1_4_agv_takes_the_next_route_as_an_order_update(
         assert any(s["orderId"] == order_id and s["orderUpdateId"] == 1 and s["nodeStates"] for s in states)
         pose = get(api, "robot", robot)["status"]["pose"]
         assert (round(pose["x"]), round(pose["y"])) == (3, 3)
-    finally:
-        agv.stop()
-        print(agv.output())
