@@ -126,19 +126,19 @@ def api_command(port: int, workers: int = 2, *, access_log: bool = False) -> lis
         str(API_NICENESS),
         str(VENV_BIN / "granian"),
         "--interface",
-        "wsgi",
+        "asginl",
         "--host",
         "127.0.0.1",
         "--port",
         str(port),
         "--workers",
         str(workers),
-        "--blocking-threads",
-        "4",
+        "--backpressure",
+        "2048",
         "--no-ws",
         "--respawn-failed-workers",
         *(["--access-log"] if access_log else []),
-        "fleet.wsgi:application",
+        "fleet.asgi:application",
     ]
 
 

@@ -29,3 +29,19 @@ class Change(models.Model):
 
     def __str__(self) -> str:
         return f"{self.kind} {self.name} #{self.id}"
+
+
+class TrimMark(models.Model):
+    """How far the trim has deleted (one row, absent until the first trim deleted anything): the newest
+    transaction any deleted change came from. A feed position whose snapshot had seen every transaction up
+    to this one lost nothing to the trim, so a stream can resume from it (changes.selectors)."""
+
+    id = models.SmallIntegerField(primary_key=True, default=1)
+    xid = models.BigIntegerField(help_text="The newest writing transaction (xid8) of a deleted change.")
+    trimmed_at = models.DateTimeField()
+
+    class Meta:
+        db_table = "changes_trim_mark"
+
+    def __str__(self) -> str:
+        return f"trimmed up to xid {self.xid}"

@@ -1,21 +1,24 @@
-"""Watch streams (GET /robot/watch, GET /mission/watch): a snapshot, then every committed change, as
-NDJSON, from the change feed (changes.models.Change).
+"""Watch streams (GET /robot/watch, GET /mission/watch as NDJSON; GET /events as server-sent events): a
+snapshot (or, for a resuming SSE client, what it has not had), then every committed change, from the
+change feed (changes.models.Change).
 
-Served from the ASGI process (`stream` in deploy/Procfile): a watcher is a queue in the event loop, not a
-thread. One poller per process reads the feed for all its watchers: watchers with the same filters at the
-same feed position share one query and one serialization per poll.
+Served from an ASGI process (fleet.asgi): a watcher is a queue in the event loop, not a thread. One poller
+per process reads the feed for all its watchers: watchers of one kind with the same filters at the same
+feed position share one query and one serialization per poll, whatever their framing.
 
 A watcher goes from feed position to feed position (changes.selectors reads the feed), so it has every
-committed change once.
+committed change once; a watcher of several kinds gets one read's changes of all of them in feed order.
 """
 
 from __future__ import annotations
 
 import asyncio
+import heapq
 import logging
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from operator import attrgetter
 
 import orjson
 from django.conf import settings
@@ -23,7 +26,8 @@ from django.db import DatabaseError, connection
 from django.db.models import Model, QuerySet
 from rest_framework.serializers import BaseSerializer
 
-from changes.selectors import watch_changes, watch_snapshot
+from changes.framing import Framing
+from changes.selectors import Span, watch_changes, watch_resume, watch_snapshot
 
 logger = logging.getLogger(__name__)
 
@@ -32,7 +36,8 @@ QueryFor = Callable[[], QuerySet]  # the watcher's filtered queryset, built anew
 
 @dataclass(frozen=True)
 class Watched:
-    """What a watch stream shows: objects of `kind`, the rows `query` selects, as `serializer` has them."""
+    """What a stream shows of one kind: objects of `kind`, the rows `query` selects, as `serializer` has
+    them."""
 
     kind: str
     query: QueryFor  # the list endpoint's filters that select single objects (not a count: most_recent)
@@ -40,58 +45,112 @@ class Watched:
     serializer: type[BaseSerializer]
 
 
+@dataclass(frozen=True)
+class Item:
+    """One object as one change (or the snapshot) left it."""
+
+    change: int  # the change's id in the feed: the order within a read (0 in a snapshot)
+    kind: str
+    name: str
+    data: bytes  # its JSON, as GET shows it
+
+
 @dataclass(eq=False)
 class Watcher:
-    watched: Watched
+    watched: tuple[Watched, ...]
+    framing: Framing
     since: str  # the feed position this watcher has had every change up to
     queue: asyncio.Queue[bytes | None] = field(default_factory=asyncio.Queue)
-    sent: dict[str, int] = field(default_factory=dict)  # each object's last line, hashed: no line twice
+    sent: dict[tuple[str, str], int] = field(default_factory=dict)  # each object's last data, hashed
     dropped: bool = False
 
-    def offer(self, name: str, line: bytes) -> None:
-        """Queue `line` unless it repeats the object's last one; a watcher too far behind is told, dropped."""
-        digest = hash(line)
-        if self.sent.get(name) == digest or self.dropped:
+    def deliver(self, items: Iterable[Item], position: str) -> None:
+        """Queue one read's items (the changes after `since` up to `position`); the watcher is then at
+        `position`."""
+        for item in items:
+            self.offer(item, position)
+        self.since = position
+
+    def offer(self, item: Item, position: str) -> None:
+        """Queue `item` unless it repeats the object's last one; a watcher too far behind is told, dropped."""
+        key, digest = (item.kind, item.name), hash(item.data)
+        if self.sent.get(key) == digest or self.dropped:
             return
-        self.sent[name] = digest
+        self.sent[key] = digest
         if self.queue.qsize() >= settings.WATCH_QUEUE_LINES:
             self.drop(
                 "watcher_behind",
-                f"More than {settings.WATCH_QUEUE_LINES} {self.watched.kind} changes waited for this "
-                "watcher: it is dropped. Watch again for a new snapshot.",
+                f"More than {settings.WATCH_QUEUE_LINES} changes waited for this watcher: it is dropped. "
+                "Watch again for a new snapshot.",
+                resumable=False,
             )
             return
-        self.queue.put_nowait(line)
+        self.queue.put_nowait(self.framing.item(item, since=self.since, position=position))
 
-    def drop(self, error: str, detail: str) -> None:
-        """End the stream with an error line in place of whatever still waits: the client watches again."""
+    def drop(self, error: str, detail: str, *, resumable: bool) -> None:
+        """End the stream with an error in place of whatever still waits: the client watches again (SSE:
+        resuming where it was if `resumable`, else with a new snapshot)."""
         self.dropped = True
         while not self.queue.empty():
             self.queue.get_nowait()
-        self.queue.put_nowait(orjson.dumps({"error": error, "detail": detail}) + b"\n")
+        self.queue.put_nowait(self.framing.error(error, detail, resumable=resumable))
         self.queue.put_nowait(None)
 
 
-def snapshot(watched: Watched, queryset: QuerySet) -> tuple[str, list[tuple[str, bytes]]]:
-    """The snapshot's lines and the feed position they are at. Synchronous: the view calls it."""
-    position, rows = watch_snapshot(queryset=queryset)
-    return position, [(row.pk, _line(watched.serializer, row)) for row in rows]
+@dataclass(frozen=True)
+class Opening:
+    """What a stream sends before the changes the poller brings: a snapshot's items (`since` None), or
+    those of a resume, read after `since`; the watcher goes on from `position`."""
+
+    position: str
+    items: list[Item]
+    since: str | None = None
+    notice: tuple[str, str] | None = None  # an error the client is told first, (error, detail)
 
 
-def _line(serializer: type[BaseSerializer], instance: Model) -> bytes:
-    return orjson.dumps(serializer(instance).data) + b"\n"
-
-
-def _read(groups: list[tuple[Watched, str]]) -> tuple[str, list[list[tuple[str, bytes]]]]:
-    """One poll: the feed position now and, for each (watched, since), its changes' lines up to there."""
-    position, changes = watch_changes(
-        reads=[(watched.kind, watched.query(), since) for watched, since in groups]
-    )
-    lines = [
-        [(row.pk, _line(watched.serializer, row)) for row in rows]
-        for (watched, _), rows in zip(groups, changes, strict=True)
+def snapshot(reads: list[tuple[Watched, QuerySet]]) -> Opening:
+    """The snapshot: each kind's objects, kind after kind. Synchronous: the view calls it."""
+    position, rows = watch_snapshot(querysets=[queryset for _, queryset in reads])
+    items = [
+        _item(watched, row) for (watched, _), kind_rows in zip(reads, rows, strict=True) for row in kind_rows
     ]
-    return position, lines
+    return Opening(position=position, items=items)
+
+
+def resume(watched: tuple[Watched, ...], span: Span) -> Opening:
+    """What a stream that stopped at `span` has not had, in feed order (changes.selectors.watch_resume,
+    whose errors it raises). Synchronous: the view calls it."""
+    position, rows = watch_resume(
+        reads=[(each.kind, each.query()) for each in watched], span=span, limit=settings.WATCH_QUEUE_LINES
+    )
+    kinds = [[_item(each, row) for row in kind_rows] for each, kind_rows in zip(watched, rows, strict=True)]
+    return Opening(position=position, items=list(_in_feed_order(kinds)), since=span.since)
+
+
+def _item(watched: Watched, row: Model) -> Item:
+    data = orjson.dumps(watched.serializer(row).data)
+    return Item(change=getattr(row, "change_id", 0), kind=watched.kind, name=row.pk, data=data)
+
+
+def _in_feed_order(kinds: list[list[Item]]) -> Iterable[Item]:
+    """One read's items of several kinds as one sequence, by change id (each kind's already is)."""
+    return kinds[0] if len(kinds) == 1 else heapq.merge(*kinds, key=attrgetter("change"))
+
+
+ReadKey = tuple[str, tuple, str]  # (kind, filters, since): the watchers that share a read
+
+
+def _read_key(watched: Watched, since: str) -> ReadKey:
+    return watched.kind, watched.filters, since
+
+
+def _read(reads: list[tuple[Watched, str]]) -> tuple[str, list[list[Item]]]:
+    """One poll: the feed position now and, for each (watched, since), its changes' items up to there."""
+    position, changes = watch_changes(
+        reads=[(watched.kind, watched.query(), since) for watched, since in reads]
+    )
+    items = [[_item(watched, row) for row in rows] for (watched, _), rows in zip(reads, changes, strict=True)]
+    return position, items
 
 
 class Hub:
@@ -116,14 +175,14 @@ class Hub:
         while self.watchers:
             await asyncio.sleep(settings.WATCH_POLL_SECONDS)
             watchers = [watcher for watcher in self.watchers if not watcher.dropped]
-            groups: dict[tuple[str, tuple, str], list[Watcher]] = {}
+            reads: dict[ReadKey, Watched] = {}
             for watcher in watchers:
-                key = (watcher.watched.kind, watcher.watched.filters, watcher.since)
-                groups.setdefault(key, []).append(watcher)
-            keys = list(groups)
+                for watched in watcher.watched:
+                    reads.setdefault(_read_key(watched, watcher.since), watched)
+            keys = list(reads)
             try:
                 position, changes = await loop.run_in_executor(
-                    self._executor, _read, [(groups[key][0].watched, key[2]) for key in keys]
+                    self._executor, _read, [(reads[key], key[2]) for key in keys]
                 )
             except DatabaseError:
                 # PostgreSQL away: the positions stand, the next poll reads from them again.
@@ -135,31 +194,59 @@ class Hub:
                 # silent; a watcher that watches again starts a new poller.
                 logger.exception("The change feed's poll failed; ending this process's watch streams")
                 for watcher in list(self.watchers):
-                    watcher.drop("feed_failed", "The server could not read the change feed. Watch again.")
+                    watcher.drop(
+                        "feed_failed",
+                        "The server could not read the change feed. Watch again.",
+                        resumable=True,
+                    )
                 self.watchers.clear()
                 return
-            for key, lines in zip(keys, changes, strict=True):
-                for watcher in groups[key]:
-                    for name, line in lines:
-                        watcher.offer(name, line)
-                    watcher.since = position
+            items = dict(zip(keys, changes, strict=True))
+            for watcher in watchers:
+                kinds = [items[_read_key(watched, watcher.since)] for watched in watcher.watched]
+                watcher.deliver(_in_feed_order(kinds), position)
 
 
 HUB = Hub()
 
 
-async def watch_lines(
-    watched: Watched, position: str, lines: list[tuple[str, bytes]]
+async def watch_stream(
+    watched: tuple[Watched, ...], framing: Framing, opening: Opening
 ) -> AsyncIterator[bytes]:
-    """The snapshot's lines, then each change's, until the client goes or falls too far behind."""
-    watcher = Watcher(watched=watched, since=position)
-    watcher.sent.update((name, hash(line)) for name, line in lines)
+    """The opening's items, then each change's, until the client goes or falls too far behind;
+    keepalives while there is nothing to send."""
+    watcher = Watcher(watched=watched, framing=framing, since=opening.position)
+    watcher.sent.update(((item.kind, item.name), hash(item.data)) for item in opening.items)
     HUB.add(watcher)
     try:
-        yield b""  # the response's headers go out now, not with the first line, which may be a long while
-        for _, line in lines:
-            yield line
-        while (line := await watcher.queue.get()) is not None:
-            yield line
+        # The response's headers go out now, not with the first item, which may be a long while.
+        yield framing.start() + (framing.error(*opening.notice) if opening.notice else b"")
+        opened = [
+            framing.item(item, since=opening.since, position=opening.position) for item in opening.items
+        ]
+        if opening.since is None:
+            opened.append(framing.snapshot_end(opening.position))
+        yield b"".join(opened)
+        while True:
+            try:
+                chunk = watcher.queue.get_nowait()
+            except asyncio.QueueEmpty:
+                try:
+                    chunk = await asyncio.wait_for(watcher.queue.get(), framing.keepalive_seconds)
+                except TimeoutError:
+                    # Nothing waits: the client has had every change up to the watcher's position.
+                    yield framing.keepalive(watcher.since)
+                    continue
+            # Whatever else waits goes out in the same write.
+            chunks = []
+            while chunk is not None:
+                chunks.append(chunk)
+                if watcher.queue.empty():
+                    break
+                chunk = watcher.queue.get_nowait()
+            if chunks:
+                yield b"".join(chunks)
+            if chunk is None:
+                return
     finally:
         HUB.remove(watcher)

@@ -1,17 +1,106 @@
-"""The stream process's ASGI application (`stream` in deploy/Procfile): the watch streams, each an
-asyncio task rather than a thread, so hundreds of open streams take none of the API's request threads.
-It serves the same URLconf; the REST API itself is served by the WSGI process (fleet.wsgi)."""
+"""The API's ASGI application (`api` in deploy/Procfile, granian's ASGI interface): the REST API and the
+streams (GET /robot/watch, GET /mission/watch, GET /events) on one port, with one set of credentials.
 
+Both go through Django's ASGI handler, but not on the same threads:
+- A REST request borrows one of FLEET_API_THREADS threads for its whole run (middleware, view, response),
+  as a WSGI server's request thread: that thread keeps its database connection from request to request,
+  and at most that many requests run at once (the others wait their turn in the event loop).
+- A stream's request (its authentication, validation and snapshot) runs on a thread of its own, closed
+  with its database connection when the stream ends; the stream itself is a coroutine (changes.stream),
+  so hundreds of open streams take none of the REST threads.
+"""
+
+import asyncio
 import os
+from collections.abc import AsyncIterator, Awaitable, Callable
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import asynccontextmanager
+from typing import Any
 
+from asgiref.sync import ThreadSensitiveContext
 from django.conf import settings
 from django.core.asgi import get_asgi_application
+from django.db import connections
+
+from fleet.serving import STREAM_PATHS, api_process_start
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
 
-application = get_asgi_application()
-# Here each request runs in a thread of its own, which ends with it: a persistent connection would outlive
-# its thread, open and never used again (Django: "If you're using ASGI, you should disable persistent
-# connections"). Closed at each request's end instead; the watch streams' poller keeps its own.
-for database in settings.DATABASES.values():
-    database["CONN_MAX_AGE"] = 0
+django_application = get_asgi_application()
+
+Scope = dict[str, Any]
+Message = dict[str, Any]
+Receive = Callable[[], Awaitable[Message]]
+
+
+class RequestThreads:
+    """FLEET_API_THREADS threads, each lent to one request at a time (asgiref runs a request's
+    thread-sensitive calls, hence all of Django's, on the thread of its ThreadSensitiveContext)."""
+
+    def __init__(self, count: int) -> None:
+        self._count = count
+        self._free: asyncio.Queue[ThreadPoolExecutor] | None = None
+
+    @asynccontextmanager
+    async def lend(self) -> AsyncIterator[ThreadPoolExecutor]:
+        if self._free is None:  # in the server's event loop, at the first request
+            self._free = asyncio.Queue()
+            for number in range(self._count):
+                self._free.put_nowait(ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"api-{number}"))
+        thread = await self._free.get()
+        try:
+            yield thread
+        finally:
+            self._free.put_nowait(thread)
+
+
+REQUEST_THREADS = RequestThreads(settings.API_THREADS)
+
+
+async def application(scope: Scope, receive: Receive, send: Any) -> None:
+    receive = _bounded(receive)
+    if scope["type"] == "http" and scope["path"] in STREAM_PATHS:
+        await _stream(scope, receive, send)
+        return
+    async with REQUEST_THREADS.lend() as thread, ThreadSensitiveContext(executor=thread):
+        await django_application(scope, receive, send)
+
+
+def _bounded(receive: Receive) -> Receive:
+    """`receive`, but a body ends after FLEET_API_MAX_BODY_BYTES + 1 bytes. Django's ASGI handler reads a
+    whole body (into a temporary file past 2.5 MB) before any check of its size; cut short, a body too
+    large is refused by its Content-Length (body_too_large) and a chunked one for having none, as under
+    WSGI, without the server storing the rest. The rest is read and dropped: after a body, Django's handler
+    expects only the client's disconnect."""
+    read = 0
+
+    async def bounded() -> Message:
+        nonlocal read
+        limit = settings.API_MAX_BODY_BYTES
+        while True:
+            message = await receive()
+            if message["type"] != "http.request" or read <= limit:
+                break
+        if message["type"] == "http.request":
+            read += len(message.get("body", b""))
+            if read > limit:
+                message = {**message, "more_body": False}
+        return message
+
+    return bounded
+
+
+async def _stream(scope: Scope, receive: Any, send: Any) -> None:
+    """A stream's request on a thread of its own, which ends with it, and its database connection too (a
+    connection left behind would stay open for good: the view lets go of it once the snapshot is read,
+    this is for the requests refused before)."""
+    thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stream")
+    try:
+        async with ThreadSensitiveContext(executor=thread):
+            await django_application(scope, receive, send)
+    finally:
+        await asyncio.get_running_loop().run_in_executor(thread, connections.close_all)
+        thread.shutdown(wait=False)
+
+
+api_process_start()

@@ -143,6 +143,9 @@ WHITENOISE_USE_FINDERS = True
 API_PORT = env_int("FLEET_API_PORT", 5000)
 # Off: the reference's open API, for trusted networks only (the API process warns at start).
 API_AUTH = env_bool("FLEET_API_AUTH", True)
+# REST requests an API process (fleet.asgi) runs at once, each on a thread of its own that keeps its
+# database connection; more wait their turn. Open streams are not counted: they take no thread.
+API_THREADS = env_int("FLEET_API_THREADS", 4)
 
 REST_FRAMEWORK = {
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
@@ -189,18 +192,18 @@ SPECTACULAR_SETTINGS = {
     },
 }
 
-# --- Watch streams and the change feed (README "Watch streams") -----------------------------------------
-# The stream process (ASGI) serving GET /robot/watch and GET /mission/watch; the API answers those with a
-# redirect to FLEET_STREAM_URL, else to its own host on this port.
-STREAM_PORT = env_int("FLEET_STREAM_PORT", 5002)
-STREAM_URL = env_str("FLEET_STREAM_URL", "")
-# How often the stream process reads the change feed for its watchers (the streams' added latency).
+# --- Streams and the change feed (README "Watching the fleet") -----------------------------------------
+# How often an API process reads the change feed for its streams' watchers (the streams' added latency).
 WATCH_POLL_SECONDS = env_float("FLEET_WATCH_POLL_SECONDS", 0.2)
 # Lines that may wait for one watcher (a client that reads too slowly): one more and it is told and dropped.
 WATCH_QUEUE_LINES = env_int("FLEET_WATCH_QUEUE_LINES", 10_000)
 # How long the change feed keeps a change (beat trims older ones every FLEET_CHANGE_TRIM_SECONDS).
 CHANGE_RETENTION_SECONDS = env_float("FLEET_CHANGE_RETENTION_SECONDS", 600.0)
 CHANGE_TRIM_SECONDS = env_float("FLEET_CHANGE_TRIM_SECONDS", 60.0)
+# GET /events: a comment (with the current resume id) after this long without an event, so proxies keep
+# the connection; and the reconnection delay the stream asks of browsers (its `retry:`).
+EVENTS_KEEPALIVE_SECONDS = env_float("FLEET_EVENTS_KEEPALIVE_SECONDS", 15.0)
+EVENTS_RETRY_SECONDS = env_float("FLEET_EVENTS_RETRY_SECONDS", 2.0)
 
 # --- API limits: bad input is a 400 that says which limit, never a worker's time or memory -------------
 # Read at start (the schema at /openapi.json states them). README.md, "Limits", has what each bounds.

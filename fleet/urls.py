@@ -3,6 +3,7 @@ from django.urls import include, path
 from drf_spectacular.views import SpectacularJSONAPIView, SpectacularSwaggerView
 
 from fleet.api import HealthView
+from fleet.events import EventsView
 from missions.api.views import BehaviorsView
 from workers.metrics import MetricsView
 
@@ -13,6 +14,7 @@ urlpatterns = [
     path("health", HealthView.as_view(), name="health"),
     path("behaviors", BehaviorsView.as_view(), name="behaviors"),
     path("metrics", MetricsView.as_view(), name="metrics"),
+    path("events", EventsView.as_view(), name="events"),
     path("", include("robots.api.urls")),
     path("", include("missions.api.urls")),
 ]

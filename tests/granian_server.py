@@ -1,5 +1,5 @@
-"""Real granian servers for the tests that need one, as deploy/Procfile runs them: the API (WSGI) and the
-stream process (ASGI), on the test database (so their writes are committed: such tests are transactional)."""
+"""Real granian servers for the tests that need one, as deploy/Procfile runs the API (ASGI: REST and the
+streams), on the test database (so their writes are committed: such tests are transactional)."""
 
 import os
 import signal
@@ -18,7 +18,6 @@ from tests.private_redis import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 START_SECONDS = 60
-WSGI = ("wsgi", "fleet.wsgi:application")
 ASGI = ("asginl", "fleet.asgi:application")  # no lifespan: Django has none
 
 

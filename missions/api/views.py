@@ -16,7 +16,7 @@ from rest_framework.views import APIView
 
 from access.authentication import request_actor
 from changes.choices import ChangeKind
-from changes.views import watch_response
+from changes.views import AnyAccept, Source, watch_response
 from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request, body_validated
 from missions.api.serializers import (
     NODE_KIND_SERIALIZERS,
@@ -30,6 +30,10 @@ from missions.models import Mission
 from missions.selectors import mission_get, mission_list
 from missions.services import mission_cancel, mission_create, mission_delete, mission_update_routes
 from missions.vocabulary import NodeKind
+
+# What the streams show of missions (GET /mission/watch, GET /events): GET /mission's filters, GET
+# /mission/{name}'s JSON.
+MISSIONS = Source(kind=ChangeKind.MISSION, select=mission_list, serializer=MissionSerializer)
 
 
 def _waypoint(x: float, y: float) -> dict:
@@ -245,12 +249,10 @@ class MissionViewSet(viewsets.GenericViewSet):
     # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
     # /mission/{name}, so "watch" is never taken for a mission's name.
     @extend_schema(exclude=True)
-    @action(detail=False, methods=["get"], url_path="watch")
+    @action(detail=False, methods=["get"], url_path="watch", content_negotiation_class=AnyAccept)
     def watch(self, request: Request) -> HttpResponse:
         """NDJSON: every mission the filters select, then each change (README "Watch streams")."""
-        return watch_response(
-            request, kind=ChangeKind.MISSION, select=mission_list, serializer=MissionSerializer
-        )
+        return watch_response(request, MISSIONS)
 
     def create(self, request: Request) -> Response:
         spec = body_validated(MissionCreateSerializer, request.data)

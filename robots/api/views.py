@@ -10,7 +10,7 @@ from rest_framework.response import Response
 
 from access.authentication import request_actor
 from changes.choices import ChangeKind
-from changes.views import watch_response
+from changes.views import AnyAccept, Source, watch_response
 from fleet.api import (
     DETAIL_RESPONSE,
     SCHEMA_ERROR_EXAMPLE,
@@ -32,6 +32,10 @@ from robots.filters import RobotFilter
 from robots.models import Robot
 from robots.selectors import robot_get, robot_list, robot_map_actions
 from robots.services import robot_create, robot_delete, robot_map_action, robot_teleop, robot_update_spec
+
+# What the streams show of robots (GET /robot/watch, GET /events): GET /robot's filters, GET
+# /robot/{name}'s JSON.
+ROBOTS = Source(kind=ChangeKind.ROBOT, select=robot_list, serializer=RobotSerializer)
 
 README_ROBOT = {"labels": [], "battery": {"critical_level": 0.1}, "heartbeat_timeout": 30, "name": "carter01"}
 ROBOT_EXAMPLE = OpenApiExample(
@@ -186,10 +190,10 @@ class RobotViewSet(viewsets.GenericViewSet):
     # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
     # /robot/{name}, so "watch" is never taken for a robot's name.
     @extend_schema(exclude=True)
-    @action(detail=False, methods=["get"], url_path="watch")
+    @action(detail=False, methods=["get"], url_path="watch", content_negotiation_class=AnyAccept)
     def watch(self, request: Request) -> HttpResponse:
         """NDJSON: every robot the filters select, then each change (README "Watch streams")."""
-        return watch_response(request, kind=ChangeKind.ROBOT, select=robot_list, serializer=RobotSerializer)
+        return watch_response(request, ROBOTS)
 
     def create(self, request: Request) -> Response:
         body = RobotCreateSerializer(data=request.data)

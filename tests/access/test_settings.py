@@ -55,8 +55,8 @@ def test_debug_mode_may_use_the_development_key(tmp_path):
 
 
 def test_the_api_process_warns_at_start_when_auth_is_off(tmp_path):
-    off = run("import fleet.wsgi", tmp_path, FLEET_SECRET_KEY="k" * 50, FLEET_API_AUTH="off")
-    on = run("import fleet.wsgi", tmp_path, FLEET_SECRET_KEY="k" * 50)
+    off = run("import fleet.asgi", tmp_path, FLEET_SECRET_KEY="k" * 50, FLEET_API_AUTH="off")
+    on = run("import fleet.asgi", tmp_path, FLEET_SECRET_KEY="k" * 50)
 
     assert off.returncode == 0 and on.returncode == 0, off.stderr + on.stderr
     assert "WARNING fleet.api: FLEET_API_AUTH is off" in off.stderr

@@ -1,4 +1,4 @@
-"""A real API server for the tests that need one: granian serving fleet.wsgi, as in production."""
+"""A real API server for the tests that need one: granian serving fleet.asgi, as in production."""
 
 from collections.abc import Iterator
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from access.services import api_token_create
-from tests.granian_server import WSGI, GranianServer, granian_server
+from tests.granian_server import ASGI, GranianServer, granian_server
 from tests.private_redis import PrivateRedis
 
 
@@ -19,7 +19,7 @@ def api_server(transactional_db: None, tmp_path: Path) -> Iterator[GranianServer
     _, token = api_token_create(name="api-server")
     try:
         with granian_server(
-            WSGI, log=tmp_path / "granian.log", token=token, env={"FLEET_REDIS_URL": redis.url}
+            ASGI, log=tmp_path / "granian.log", token=token, env={"FLEET_REDIS_URL": redis.url}
         ) as server:
             yield server
     finally:

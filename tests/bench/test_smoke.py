@@ -54,6 +54,7 @@ class Server:
 def server(django_db_setup: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
     logs = tmp_path_factory.mktemp("bench-stack-logs")
     stack = start_servers(logs)
+    stack.processes.pop("api").stop()  # replaced by deploy/Procfile's command line, niceness and all
     port = _free_port()
     stack.add("api", api_command(port, workers=1))
     base_url = f"http://127.0.0.1:{port}"

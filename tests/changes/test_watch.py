@@ -1,5 +1,5 @@
-"""GET /robot/watch and GET /mission/watch on the real stream process (granian ASGI) and the test database:
-snapshot, changes, filters, authentication, the feed's transactions, slow watchers."""
+"""GET /robot/watch and GET /mission/watch on a real API process (granian ASGI) and the test database:
+snapshot, changes, filters, authentication, the feed's transactions, slow watchers, database connections."""
 
 import time
 
@@ -10,6 +10,7 @@ from django.db import connection, transaction
 from changes.models import Change
 from missions.models import Mission
 from robots.models import Robot
+from tests.changes.conftest import API_THREADS
 from tests.database import other_connection
 from tests.waiting import wait_for
 from tests.watching import Watch
@@ -134,13 +135,15 @@ def test_publisher_id_is_accepted_and_watch_is_no_robot_name(stream_server, api,
     assert watch.response.headers["Content-Type"] == "application/x-ndjson"
 
 
-def test_the_wsgi_api_sends_watchers_to_the_stream_process(api):
-    response = api.get("/mission/watch?robot=x")
-    assert response.status_code == 307
-    assert response["Location"] == "http://testserver:5002/mission/watch?robot=x"
-    assert api.get("/robot/watch").status_code == 307
+def test_the_wsgi_application_refuses_streams(api):
+    """Under WSGI (fleet.wsgi: runserver, say) a stream would hold a thread for its whole life, and Django
+    cannot send an async stream there: the streams are the ASGI application's (deploy/Procfile)."""
+    for path in ("/mission/watch?robot=x", "/robot/watch", "/events?kind=robot"):
+        response = api.get(path)
+        assert response.status_code == 501, path
+        assert "fleet.asgi" in response.json()["detail"]
     api.credentials()
-    assert api.get("/robot/watch").status_code == 401
+    assert api.get("/events").status_code == 401
 
 
 def test_a_watcher_that_falls_behind_is_told_and_dropped(stream_server, api, watches):
@@ -184,7 +187,7 @@ def test_twenty_open_watches_leave_requests_unhindered(stream_server, api, watch
 
 
 def _stream_server_connections() -> int:
-    """Connections to the test database other than this test's own: the stream server's."""
+    """Connections to the test database other than this test's own: the server's."""
     with connection.cursor() as cursor:
         cursor.execute(
             "SELECT count(*) FROM pg_stat_activity WHERE datname = %s AND pid <> pg_backend_pid()",
@@ -194,9 +197,10 @@ def _stream_server_connections() -> int:
 
 
 def test_open_streams_and_finished_requests_hold_no_database_connection(stream_server, api, watches):
-    """Each request runs in a thread of its own: its connection must close with it (an unauthenticated
-    client must not be able to use up PostgreSQL's connections), and an open stream, which lives for
-    hours, must not keep its request's. The poller's one connection serves every stream."""
+    """A stream's request runs in a thread of its own: its connection must close with it (an
+    unauthenticated client must not be able to use up PostgreSQL's connections), and an open stream, which
+    lives for hours, must not keep its request's. The poller's one connection serves every stream; the
+    REST requests' threads keep theirs, at most FLEET_API_THREADS."""
     api.post("/robot", {"name": "wc-1"})
     for _ in range(10):
         watches.append(Watch(f"{stream_server.url}/robot/watch?names=wc-1", stream_server.auth))
@@ -206,6 +210,9 @@ def test_open_streams_and_finished_requests_hold_no_database_connection(stream_s
         url = f"{stream_server.url}/robot/watch?state=FLYING"
         assert requests.get(url, headers=stream_server.auth, timeout=10).status_code == 400
     assert all(watch.next()["name"] == "wc-1" for watch in watches)
-    wait_for(lambda: _stream_server_connections() <= 1, message="the stream server's connections to close")
+    wait_for(
+        lambda: _stream_server_connections() <= 1 + API_THREADS,
+        message="the stream requests' connections to close",
+    )
     api.put("/robot/wc-1", {"heartbeat_timeout": 7})
     assert all(watch.next()["heartbeat_timeout"] == 7.0 for watch in watches)

@@ -128,11 +128,12 @@ class Stack:
     env: dict[str, str]
     logs: Path
     processes: dict[str, Process] = field(default_factory=dict)
-    stream_port: int = field(default_factory=free_port)
+    api_port: int = field(default_factory=free_port)
 
     @property
-    def stream_url(self) -> str:
-        return f"http://127.0.0.1:{self.stream_port}"
+    def api_url(self) -> str:
+        """The API process (REST and streams), as deploy/Procfile runs it; tests call REST in-process."""
+        return f"http://127.0.0.1:{self.api_port}"
 
     def add(self, name: str, argv: list[str]) -> Process:
         process = Process(name, argv, self.env, self.logs / f"{name}.log")
@@ -192,8 +193,8 @@ def legacy_key_as_actions(message: dict[str, Any]) -> dict[str, Any]:
 
 
 def start_servers(logs: Path, **overrides: str) -> Stack:
-    """Bridge, worker and beat against the test database and the test Redis, time compressed; `overrides`
-    are more settings (another broker, say)."""
+    """Bridge, worker, beat and the API against the test database and the test Redis, time compressed;
+    `overrides` are more settings (another broker, say)."""
     env = {
         **os.environ,
         **SERVER_ENV,
@@ -207,7 +208,7 @@ def start_servers(logs: Path, **overrides: str) -> Stack:
     stack.add("bridge", BRIDGE)
     stack.add("worker", WORKER)
     stack.add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(logs / "beat-schedule")])
-    stack.add("stream", granian_command(ASGI, stack.stream_port))  # the watch streams
+    stack.add("api", granian_command(ASGI, stack.api_port))  # the streams, on the API's port
     return stack
 
 

@@ -1,15 +1,17 @@
-"""`fleet.wsgi`: what the API's server processes load."""
+"""`fleet.asgi` and `fleet.wsgi`: what the API's server processes load."""
 
 import json
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 PROBE = """
 import gc, json, sys
-import fleet.wsgi
+import fleet.{module}
 print(json.dumps({
     "frozen": gc.get_freeze_count(),
     "young": len(gc.get_objects()),
@@ -18,10 +20,15 @@ print(json.dumps({
 """
 
 
-def test_the_api_process_loads_its_views_and_freezes_what_it_loaded() -> None:
+@pytest.mark.parametrize("module", ["asgi", "wsgi"])
+def test_the_api_process_loads_its_views_and_freezes_what_it_loaded(module: str) -> None:
     """Frozen objects are out of the collector's sight: its full collections no longer walk all of Django."""
     probe = subprocess.run(
-        [sys.executable, "-W", "ignore", "-c", PROBE], cwd=ROOT, capture_output=True, text=True, check=True
+        [sys.executable, "-W", "ignore", "-c", PROBE.replace("{module}", module)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     found = json.loads(probe.stdout)
 
