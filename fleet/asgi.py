@@ -1,7 +1,8 @@
 """The API's ASGI application (`api` in deploy/Procfile, granian's ASGI interface): the REST API and the
 streams (GET /robot/watch, GET /mission/watch, GET /events) on one port, with one set of credentials.
 
-Both go through Django's ASGI handler, but not on the same threads:
+Both go through Django's ASGI handler (ApiHandler: the middleware and the view in one call, as under
+WSGI), but not on the same threads:
 - A REST request borrows one of FLEET_API_THREADS threads for its whole run (middleware, view, response),
   as a WSGI server's request thread: that thread keeps its database connection from request to request,
   and at most that many requests run at once (the others wait their turn in the event loop).
@@ -17,16 +18,33 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any
 
-from asgiref.sync import ThreadSensitiveContext
+import django
+from asgiref.sync import ThreadSensitiveContext, sync_to_async
 from django.conf import settings
-from django.core.asgi import get_asgi_application
+from django.core.handlers.asgi import ASGIHandler
 from django.db import connections
+from django.http import HttpRequest, HttpResponseBase
 
 from fleet.serving import STREAM_PATHS, api_process_start
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
+django.setup(set_prefix=False)  # as django.core.asgi.get_asgi_application
 
-django_application = get_asgi_application()
+
+class ApiHandler(ASGIHandler):
+    """Django's ASGI handler, but a request's middleware and view run as under WSGI: in one call on the
+    request's thread. In its async mode the handler goes back and forth between the event loop and the
+    thread around each middleware (WhiteNoise's and ours are sync only), a dozen round trips a request
+    that cost REST requests milliseconds (bench/README.md, "One port for the API and the streams")."""
+
+    def load_middleware(self, is_async: bool = False) -> None:
+        super().load_middleware(is_async=False)
+
+    async def get_response_async(self, request: HttpRequest) -> HttpResponseBase:
+        return await sync_to_async(self.get_response, thread_sensitive=True)(request)
+
+
+django_application = ApiHandler()
 
 Scope = dict[str, Any]
 Message = dict[str, Any]
