@@ -120,25 +120,23 @@ def processes(bridges: int = 1, workers: int = 1) -> dict[str, list[str]]:
 
 def api_command(port: int, workers: int = 2, *, access_log: bool = False) -> list[str]:
     """The API as `deploy/Procfile` runs it (its access log only if asked for), on `port` of this host."""
+    options = ["--interface", "asginl", "--workers", str(workers), "--backpressure", "2048"]
+    return granian(port, "fleet.asgi:application", *options, *(["--access-log"] if access_log else []))
+
+
+def granian(port: int, app: str, *options: str) -> list[str]:
+    """granian serving `app` on `port` of this host as deploy/Procfile serves the API (its niceness, a
+    failed worker respawned, no websockets), with `options`."""
+    address = ["--host", "127.0.0.1", "--port", str(port)]
+    niceness = ["nice", "-n", str(API_NICENESS)]
     return [
-        "nice",
-        "-n",
-        str(API_NICENESS),
+        *niceness,
         str(VENV_BIN / "granian"),
-        "--interface",
-        "asginl",
-        "--host",
-        "127.0.0.1",
-        "--port",
-        str(port),
-        "--workers",
-        str(workers),
-        "--backpressure",
-        "2048",
+        *address,
+        *options,
         "--no-ws",
         "--respawn-failed-workers",
-        *(["--access-log"] if access_log else []),
-        "fleet.asgi:application",
+        app,
     ]
 
 

@@ -30,6 +30,7 @@ from bench import report
 from bench.fleet import SETTLED_READINGS
 from bench.measure import DEFAULT_PROCESS_GROUPS, GENERATOR
 from bench.suite import API_NICENESS, api_command
+from tests.bench.generator import run_generator
 from tests.e2e.conftest import PYTHON, ROOT, Stack, start_servers
 from tests.vda5050.schemas import validate_message
 from tests.waiting import wait_for
@@ -38,7 +39,6 @@ from vda5050.codec import parse_state
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 PREFIX = "uagv/v2/RobotCompany"  # the server's default identity for robots created by name
-GENERATOR_TIMEOUT = 180  # s; generous, the machine is shared
 START_RATE = 5.0  # missions/s in the start phase
 
 
@@ -116,45 +116,35 @@ def test_ten_second_run_completes_missions_with_valid_messages(
     run_id = uuid.uuid4().hex[:6]
     capture = Capture(f"bench-{run_id}-")
     try:
-        finished = subprocess.run(
-            [
-                PYTHON,
-                "-m",
-                "bench.fleet",
-                "--base-url",
-                server.base_url,
-                "--api-token",
-                api_token,
-                "--mqtt-host",
-                settings.MQTT_HOST,
-                "--mqtt-port",
-                str(settings.MQTT_PORT),
-                "--mqtt-prefix",
-                PREFIX,
-                "--robots",
-                "5",
-                "--nodes",
-                "3",
-                "--start-rate",
-                str(START_RATE),
-                "--duration",
-                "10",
-                "--warmup",
-                "1",
-                "--sample-every",
-                "3",
-                "--run-id",
-                run_id,
-                "--output",
-                str(tmp_path),
-            ],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=GENERATOR_TIMEOUT,
-            check=False,
+        run_generator(
+            "bench.fleet",
+            "--base-url",
+            server.base_url,
+            "--api-token",
+            api_token,
+            "--mqtt-host",
+            settings.MQTT_HOST,
+            "--mqtt-port",
+            str(settings.MQTT_PORT),
+            "--mqtt-prefix",
+            PREFIX,
+            "--robots",
+            "5",
+            "--nodes",
+            "3",
+            "--start-rate",
+            str(START_RATE),
+            "--duration",
+            "10",
+            "--warmup",
+            "1",
+            "--sample-every",
+            "3",
+            "--run-id",
+            run_id,
+            "--output",
+            str(tmp_path),
         )
-        assert finished.returncode == 0, finished.stderr[-3000:]
         wait_for(  # the last messages may still be on their way to the capture
             lambda: any(c["connectionState"] == "OFFLINE" for c in capture.of("connection")),
             message="the robots' OFFLINE",

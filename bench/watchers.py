@@ -1,0 +1,340 @@
+"""``python -m bench.watchers``: bench.fleet's run (a fleet of fake robots doing missions) with N watchers
+of the missions open meanwhile, on GET /events (server-sent events) or GET /mission/watch (NDJSON).
+
+What it reports (bench/README.md, "Watchers"):
+- delivery: every watcher must have had every transition of every mission the run completed (PENDING,
+  RUNNING, COMPLETED, and each route node's), and each mission's sequence of objects must be the same on
+  every watcher; missions short of that are counted per watcher, as are dropped watchers and error events;
+- delivery latency: from the server's own time of a transition (a mission's start_timestamp for RUNNING,
+  end_timestamp for COMPLETED) to the watcher's reading of it, p50/p99/max over all watchers;
+- REST latency meanwhile: GET /robot?names=... (10 robots) every PROBE_SECONDS, in the run's window;
+- the server's processes' memory and CPU over time: bench.fleet's own series (the `api` group is the
+  process that serves the streams).
+
+The watchers run in `--watcher-processes` child processes (asyncio, raw HTTP/1.1), so parsing what hundreds
+of watchers read does not take the generator's CPU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import logging
+import math
+import multiprocessing
+import sys
+import time
+import zlib
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from multiprocessing.connection import Connection
+from typing import Any
+from urllib.parse import urlsplit
+
+import orjson
+
+from bench import fleet, measure
+from bench.api import DispatchApi
+
+logger = logging.getLogger("bench")
+
+SSE, NDJSON = "sse", "ndjson"
+CONNECT_TIMEOUT = 60.0  # s for every watcher's snapshot
+TAIL_SECONDS = 3.0  # s the watchers keep reading after the fleet's run: the last transitions' delivery
+PROBE_SECONDS = 0.5
+READ_LIMIT = 2**24  # bytes of one line (a snapshot's mission can be large)
+# Children start afresh (not forked from a process with a running event loop and MQTT threads).
+SPAWN = multiprocessing.get_context("spawn")
+
+
+STATE_LETTERS = {"PENDING": "P", "RUNNING": "R", "COMPLETED": "C", "FAILED": "F", "CANCELED": "X"}
+EVERY_TRANSITION = "PRC"  # PENDING, RUNNING, COMPLETED: of a completed mission and of each of its nodes
+
+
+@dataclass
+class Progress:
+    """A mission a watcher has seen and that has not completed yet: what it must check then."""
+
+    digest: int = 0  # crc32 over its objects, in the order read
+    states: str = ""  # its distinct states in order, one letter each (STATE_LETTERS)
+    nodes: dict[str, str] = field(default_factory=dict)  # the same for each node
+    last_state: str | None = None
+
+
+@dataclass
+class Seen:
+    """What one watcher read of the run's missions, in constant memory per mission it completed (hundreds
+    of watchers over thousands of missions): a check per mission when it completes, and a fingerprint of
+    all completed missions' objects, the same on every watcher that read the same."""
+
+    active: dict[str, Progress] = field(default_factory=dict)
+    completed: int = 0
+    incomplete: int = 0  # completed missions of which a transition was not read
+    fingerprint: int = 0  # xor over completed missions of crc32(name) << 32 | their objects' crc32
+    latency_ms: Counter[int] = field(default_factory=Counter)  # transition -> read, 1-ms buckets
+    errors: list[str] = field(default_factory=list)
+    objects: int = 0
+
+    def read(self, line: bytes, mission: dict[str, Any], read_at: float) -> None:
+        name, status = mission["name"], mission["status"]
+        progress = self.active.setdefault(name, Progress())
+        progress.digest = zlib.crc32(line, progress.digest)
+        state = status["state"]
+        if state != progress.last_state:
+            progress.states += STATE_LETTERS.get(state, "?")
+            at = {"RUNNING": status["start_timestamp"], "COMPLETED": status["end_timestamp"]}.get(state)
+            if at is not None:
+                self.latency_ms[int((read_at - _seconds(at)) * 1000)] += 1
+            progress.last_state = state
+        for node, node_status in status["node_status"].items():
+            letter = STATE_LETTERS.get(node_status["state"], "?")
+            if not progress.nodes.get(node, "").endswith(letter):
+                progress.nodes[node] = progress.nodes.get(node, "") + letter
+        if state == "COMPLETED":
+            del self.active[name]
+            self.completed += 1
+            self.incomplete += progress.states != EVERY_TRANSITION or any(
+                states != EVERY_TRANSITION for states in progress.nodes.values()
+            )
+            self.fingerprint ^= zlib.crc32(name.encode()) << 32 | progress.digest
+
+
+def _seconds(timestamp: str) -> float:
+    return datetime.fromisoformat(timestamp.replace("Z", "+00:00")).timestamp()
+
+
+def _histogram_summary(buckets: Counter[int]) -> dict[str, float | int | None]:
+    """count, p50, p99 and max in ms of 1-ms buckets (each bucket's upper bound)."""
+    count = sum(buckets.values())
+    if not count:
+        return {"count": 0, "p50": None, "p99": None, "max": None}
+    ordered = sorted(buckets.items())
+
+    def percentile(p: float) -> int:
+        rank, seen = math.ceil(p / 100 * count), 0
+        for bucket, number in ordered:
+            seen += number
+            if seen >= rank:
+                return bucket + 1
+        return ordered[-1][0] + 1
+
+    return {"count": count, "p50": percentile(50), "p99": percentile(99), "max": ordered[-1][0] + 1}
+
+
+async def _watch(
+    url: str, token: str | None, framing: str, prefix: str, seen: Seen, ready: asyncio.Event
+) -> None:
+    """One watcher: an HTTP/1.1 GET, its chunked body read as NDJSON or as server-sent events."""
+    parts = urlsplit(url)
+    reader, writer = await asyncio.open_connection(parts.hostname, parts.port or 80, limit=READ_LIMIT)
+    auth = f"Authorization: Bearer {token}\r\n" if token else ""
+    accept = "text/event-stream" if framing == SSE else "application/x-ndjson"
+    target = parts.path + (f"?{parts.query}" if parts.query else "")
+    writer.write(f"GET {target} HTTP/1.1\r\nHost: {parts.netloc}\r\n{auth}Accept: {accept}\r\n\r\n".encode())
+    status = await reader.readline()
+    if b" 200 " not in status:
+        seen.errors.append(status.decode(errors="replace").strip())
+        ready.set()
+        return
+    while (await reader.readline()).strip():
+        pass  # the headers; the body is chunked
+    if framing == NDJSON:
+        ready.set()  # NDJSON has no end of snapshot: none of the run's missions exists yet
+    pending = b""
+    try:
+        while size := int((await reader.readline()).split(b";")[0], 16):
+            pending += (await reader.readexactly(size + 2))[:-2]
+            *lines, pending = pending.split(b"\n")
+            for line in lines:
+                if framing == SSE:
+                    if line == b"event: snapshot_end":
+                        ready.set()
+                    elif line == b"event: error":
+                        seen.errors.append("error event")
+                    if not line.startswith(b'data: {"'):
+                        continue
+                    line = line[6:]
+                elif not line:
+                    continue
+                _read_object(line, prefix, seen)
+    except (ConnectionError, asyncio.IncompleteReadError, ValueError) as exc:
+        seen.errors.append(f"stream ended: {exc!r}")
+    finally:
+        ready.set()
+        writer.close()
+
+
+def _read_object(line: bytes, prefix: str, seen: Seen) -> None:
+    read_at = time.time()
+    mission = orjson.loads(line)
+    if "error" in mission:
+        seen.errors.append(mission["error"])
+    elif mission["name"].startswith(prefix):
+        seen.objects += 1
+        seen.read(line, mission, read_at)
+
+
+def _watchers_process(args: dict[str, Any], count: int, pipe: Connection) -> None:
+    """A child process: `count` watchers until the parent says stop; then what each saw, to the parent."""
+    asyncio.run(_watchers(args, count, pipe))
+
+
+async def _watchers(args: dict[str, Any], count: int, pipe: Connection) -> None:
+    seen = [Seen() for _ in range(count)]
+    ready = [asyncio.Event() for _ in range(count)]
+    tasks = [
+        asyncio.create_task(_watch(args["url"], args["token"], args["framing"], args["prefix"], mine, event))
+        for mine, event in zip(seen, ready, strict=True)
+    ]
+    await asyncio.wait_for(asyncio.gather(*(event.wait() for event in ready)), CONNECT_TIMEOUT)
+    pipe.send("ready")
+    await asyncio.get_running_loop().run_in_executor(None, pipe.recv)  # "stop"
+    for task in tasks:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    for mine in seen:
+        mine.active.clear()  # missions the run did not complete: nothing to check
+    pipe.send([vars(mine) for mine in seen])  # its fields, not a Seen: this module is __mp_main__ here
+
+
+def _delivery(watchers: list[Seen]) -> dict[str, Any]:
+    """Missions completed and checked per watcher, and the watchers that read otherwise than most did."""
+    usual = Counter((seen.completed, seen.fingerprint) for seen in watchers).most_common(1)
+    completed, fingerprint = usual[0][0] if usual else (0, 0)
+    return {
+        "missions_completed": completed,
+        "missions_without_every_transition": sum(seen.incomplete for seen in watchers),
+        "watchers_that_read_otherwise": sum(
+            (seen.completed, seen.fingerprint) != (completed, fingerprint) for seen in watchers
+        ),
+    }
+
+
+async def _probe(
+    api: DispatchApi, names: list[str], samples: list[tuple[float, float]], stop: asyncio.Event
+) -> None:
+    """GET /robot?names=... every PROBE_SECONDS: (when, latency)."""
+    while not stop.is_set():
+        started = time.monotonic()
+        try:
+            await api.online_robots(names)
+            samples.append((started, time.monotonic() - started))
+        except Exception as exc:  # the run goes on; the probe's failures are counted as missing samples
+            logger.warning("REST probe failed: %s", exc)
+        await asyncio.sleep(PROBE_SECONDS)
+
+
+async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, Any]:
+    path = "/events?kind=mission" if args.framing == SSE else "/mission/watch"
+    child_args = {
+        "url": options.base_url.rstrip("/") + path,
+        "token": options.api_token,
+        "framing": args.framing,
+        "prefix": options.name_prefix + "-",
+    }
+    counts = [len(range(i, args.watchers, args.watcher_processes)) for i in range(args.watcher_processes)]
+    children = []
+    for count in counts:
+        parent, child = SPAWN.Pipe()
+        process = SPAWN.Process(target=_watchers_process, args=(child_args, count, child), daemon=True)
+        process.start()
+        children.append((process, parent))
+    loop = asyncio.get_running_loop()
+    for _, pipe in children:
+        if not await loop.run_in_executor(None, pipe.poll, CONNECT_TIMEOUT):
+            raise RuntimeError("the watchers did not connect")
+        pipe.recv()
+    logger.info("%d %s watchers connected", args.watchers, args.framing)
+    bench = fleet.Bench(options)
+    probe_api = DispatchApi(options.base_url, 1, options.api_token)
+    probes: list[tuple[float, float]] = []
+    stop = asyncio.Event()
+    names = [load.name for load in bench.loads[:10]]
+    probe = loop.create_task(_probe(probe_api, names, probes, stop))
+    try:
+        result = await bench.run()
+    finally:
+        stop.set()
+        await probe
+        probe_api.close()
+    await asyncio.sleep(TAIL_SECONDS)
+    watchers: list[Seen] = []
+    for process, pipe in children:
+        pipe.send("stop")
+        watchers += [Seen(**fields) for fields in await loop.run_in_executor(None, pipe.recv)]
+        process.join(timeout=30)
+    window = bench.window
+    result["watchers"] = {
+        "count": args.watchers,
+        "framing": args.framing,
+        "processes": args.watcher_processes,
+        "objects_read": sum(seen.objects for seen in watchers),
+        "delivery": _delivery(watchers),
+        "delivery_latency_ms": _histogram_summary(sum((seen.latency_ms for seen in watchers), Counter())),
+        "errors": sum(len(seen.errors) for seen in watchers),
+        "error_samples": [error for seen in watchers for error in seen.errors][: fleet.MAX_LOGGED_ERRORS],
+        "rest_get_robot_ms": measure.latency_summary([latency for at, latency in probes if at in window]),
+    }
+    return result
+
+
+def markdown(result: dict[str, Any]) -> str:
+    watchers = result["watchers"]
+    delivery, latency = watchers["delivery"], watchers["delivery_latency_ms"]
+    rest, step = watchers["rest_get_robot_ms"], result["step_latency_ms"]
+    robots = result["options"]["robots"]
+    rss = result["drift"]["rss_mb"].get("api", {})
+    return "\n".join(
+        [
+            f"## watchers: {watchers['count']} {watchers['framing']} watchers, {robots} robots",
+            "",
+            "| what | value |",
+            "|---|---|",
+            f"| missions completed | {delivery['missions_completed']} |",
+            f"| missions without every transition | {delivery['missions_without_every_transition']} |",
+            f"| watchers that read otherwise than most | {delivery['watchers_that_read_otherwise']} |",
+            f"| errors (dropped, failed) | {watchers['errors']} |",
+            f"| delivery latency p50 / p99 / max ms | {latency['p50']} / {latency['p99']} / {latency['max']} "
+            "|",
+            f"| REST GET /robot p50 / p99 ms (window) | {rest['p50']} / {rest['p99']} |",
+            f"| step latency p50 / p99 ms | {step['p50']} / {step['p99']} |",
+            f"| api RSS over the window, first / last / max (MB) | {rss.get('first')} / {rss.get('last')} / "
+            f"{rss.get('max')} |",
+            f"| CPU speed (ms of calibration work) | {result['machine']['cpu_speed_ms']} |",
+            "",
+        ]
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = fleet.build_parser()
+    parser.prog = "python -m bench.watchers"
+    parser.add_argument("--watchers", type=int, default=10, help="concurrent watchers")
+    parser.add_argument(
+        "--framing", choices=(SSE, NDJSON), default=SSE, help="GET /events or GET /mission/watch"
+    )
+    parser.add_argument(
+        "--watcher-processes", type=int, default=2, help="child processes the watchers run in"
+    )
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    options = fleet.options_from(
+        argparse.Namespace(
+            **{k: v for k, v in vars(args).items() if k not in {"watchers", "framing", "watcher_processes"}}
+        ),
+        args.robots,
+    )
+    result = asyncio.run(_run(options, args))
+    options.output.mkdir(parents=True, exist_ok=True)
+    stem = f"watchers-n{options.robots}-w{args.watchers}-{options.run_id}"
+    (options.output / f"{stem}.json").write_text(json.dumps(result, indent=2) + "\n")
+    (options.output / f"{stem}.md").write_text(markdown(result))
+    logger.info("wrote %s\n%s", options.output / f"{stem}.json", markdown(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
