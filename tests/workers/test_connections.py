@@ -1,13 +1,14 @@
 """Database connections after PostgreSQL dropped them (a restart, a failover): the API's requests check
 theirs first, the hot loops replace theirs after its first failure (`fleet.db.drop_broken_connections`)."""
 
-from wsgiref.util import setup_testing_defaults
+import asyncio
 
 import pytest
 from celery.signals import task_prerun
+from django.conf import settings
 from django.db import OperationalError, connection
 
-from fleet.wsgi import application
+from fleet.asgi import application
 from robots.models import Robot
 from tests.database import other_connection
 
@@ -56,24 +57,61 @@ def test_a_connection_that_failed_but_still_answers_is_kept() -> None:
     assert not connection.errors_occurred
 
 
-def wsgi_get(path: str, token: str) -> int:
-    """GET `path` through the API's WSGI application, as its server calls it (Django's test client leaves
+async def api_get(path: str, token: str) -> int:
+    """GET `path` through the API's ASGI application, as its server calls it (Django's test client leaves
     out the connection handling this is about), with a bearer token; the response's status code."""
-    environ: dict[str, object] = {
-        "PATH_INFO": path,
-        "REQUEST_METHOD": "GET",
-        "HTTP_AUTHORIZATION": f"Bearer {token}",
+    sent: list[dict] = []
+    body = iter([{"type": "http.request", "body": b"", "more_body": False}])
+
+    async def receive() -> dict:
+        for message in body:
+            return message
+        await asyncio.get_running_loop().create_future()  # then the client waits for the response
+        raise AssertionError("unreachable")
+
+    async def send(message: dict) -> None:
+        sent.append(message)
+
+    scope = {
+        "type": "http",
+        "asgi": {"version": "3.0"},
+        "http_version": "1.1",
+        "method": "GET",
+        "scheme": "http",
+        "path": path,
+        "raw_path": path.encode(),
+        "root_path": "",
+        "query_string": b"",
+        "headers": [(b"host", b"testserver"), (b"authorization", f"Bearer {token}".encode())],
+        "server": ("testserver", 80),
+        "client": ("127.0.0.1", 50000),
     }
-    setup_testing_defaults(environ)
-    status: list[str] = []
-    body = application(environ, lambda line, headers: status.append(line))
-    b"".join(body)
-    body.close()  # what the server does: request_finished
-    return int(status[0].split()[0])
+    await application(scope, receive, send)
+    return sent[0]["status"]
 
 
-def test_an_api_request_after_postgresql_dropped_the_connection_succeeds(api_token: str) -> None:
-    assert wsgi_get("/robot", api_token) == 200
-    drop_backend()
+def drop_other_backends(mine: int) -> None:
+    """End the server processes of every connection to the test database but this test's (backend `mine`),
+    as a PostgreSQL restart does: the API's request threads' connections."""
+    with other_connection() as other:
+        other.execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
+            "WHERE datname = current_database() AND pid NOT IN (pg_backend_pid(), %s)",
+            [mine],
+        )
 
-    assert wsgi_get("/robot", api_token) == 200
+
+def test_api_requests_after_postgresql_dropped_their_connections_succeed(api_token: str) -> None:
+    """Each of the API's request threads keeps its connection; each checks it before a request."""
+    Robot.objects.count()
+    mine = connection.connection.info.backend_pid
+
+    async def requests() -> list[int]:
+        statuses = [await api_get("/robot", api_token) for _ in range(settings.API_THREADS)]
+        drop_other_backends(mine)
+        return statuses + [await api_get("/robot", api_token) for _ in range(settings.API_THREADS)]
+
+    try:
+        assert asyncio.run(requests()) == [200] * 2 * settings.API_THREADS
+    finally:
+        drop_other_backends(mine)  # the threads' connections outlive the test: the test database goes
