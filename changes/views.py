@@ -86,11 +86,12 @@ def events_response(request: Request, sources: list[Source]) -> HttpResponse:
     if not isinstance(request._request, ASGIRequest):
         raise StreamsNeedAsgi
     by_kind = {source.kind: source for source in sources}
-    kinds = list(dict.fromkeys(request.query_params.getlist(KIND))) or list(by_kind)
-    unknown = [kind for kind in kinds if kind not in by_kind]
+    asked = request.query_params.getlist(KIND) or list(by_kind)
+    unknown = [kind for kind in asked if kind not in by_kind]
     if unknown:
         message = f"Unknown kind {unknown[0]!r}: one of {', '.join(by_kind)}."
         raise QueryValidationError({KIND: [ErrorDetail(message, code="invalid_choice")]})
+    kinds = [kind for kind in by_kind if kind in asked]  # the snapshot in the sources' order
     filters = {kind: QueryDict(mutable=True) for kind in kinds}
     for key, values in request.query_params.lists():
         kind, dot, name = key.partition(".")

@@ -59,6 +59,10 @@ def test_the_snapshot_then_each_change_in_commit_order(stream_server, api, watch
     assert (end.event, end.data) == ("snapshot_end", {})
     assert end.id
 
+    # Asked for the other way round, the snapshot is the same: robots, then missions.
+    reversed_kinds = "kind=mission&kind=robot&robot.names=ev-r1&mission.robot=ev-r1"
+    assert _snapshot(_open(stream_server, reversed_kinds, watches))[0] == [robot, mission]
+
     api.put("/robot/ev-r1", {"heartbeat_timeout": 12})
     api.post("/mission/ev-m1/cancel")
     api.post("/mission/ev-m2/cancel")  # another robot's: filtered out
