@@ -1,23 +1,15 @@
 """Swagger UI as a person uses it (in Chromium): without a token "Try it out" gets 401; after "Authorize"
 with a token, GET /robot answers 200."""
 
-import os
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
 from access.services import api_token_create
+from tests.browser import chromium_page, needs_chromium
 
-CHROMIUM = Path(os.environ.get("PLAYWRIGHT_CHROMIUM_EXECUTABLE", "/usr/bin/chromium"))
-
-pytestmark = [
-    pytest.mark.e2e,
-    pytest.mark.django_db(transaction=True),
-    pytest.mark.skipif(not CHROMIUM.exists(), reason=f"no Chromium at {CHROMIUM} (apt-get install chromium)"),
-]
+pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True), needs_chromium]
 sync_api = pytest.importorskip("playwright.sync_api")
-TIMEOUT_MS = 30_000  # generous: the machine is shared
 
 
 @pytest.fixture
@@ -27,16 +19,9 @@ def token(live_server) -> str:
 
 @pytest.fixture
 def page(token: str) -> Iterator["sync_api.Page"]:
-    """A Chromium page. Playwright runs an event loop in this thread, where Django then refuses database
-    access: everything the test needs from the database is made before (`token`)."""
-    with sync_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        try:
-            page = browser.new_page()
-            page.set_default_timeout(TIMEOUT_MS)
-            yield page
-        finally:
-            browser.close()
+    """A Chromium page; everything the test needs from the database is made before (`token`)."""
+    with chromium_page() as page:
+        yield page
 
 
 def try_get_robots(page: "sync_api.Page") -> str:
