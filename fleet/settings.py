@@ -60,6 +60,7 @@ SECRET_KEY = secret_key()
 ALLOWED_HOSTS = env_str("FLEET_ALLOWED_HOSTS", "*").split(",")
 
 INSTALLED_APPS = [
+    "fleetpage",  # before the admin: its admin/base_site.html adds the admin's link to the live fleet page
     "django.contrib.admin",
     "django.contrib.auth",
     "django.contrib.contenttypes",
@@ -204,6 +205,8 @@ CHANGE_TRIM_SECONDS = env_float("FLEET_CHANGE_TRIM_SECONDS", 60.0)
 # the connection; and the reconnection delay the stream asks of browsers (its `retry:`).
 EVENTS_KEEPALIVE_SECONDS = env_float("FLEET_EVENTS_KEEPALIVE_SECONDS", 15.0)
 EVENTS_RETRY_SECONDS = env_float("FLEET_EVENTS_RETRY_SECONDS", 2.0)
+# Missions the live fleet page (/fleet) loads and keeps at most: the most recent ones, those queued first.
+PAGE_MISSIONS = env_int("FLEET_PAGE_MISSIONS", 1000)
 
 # --- API limits: bad input is a 400 that says which limit, never a worker's time or memory -------------
 # Read at start (the schema at /openapi.json states them). README.md, "Limits", has what each bounds.

@@ -9,6 +9,7 @@ from workers.metrics import MetricsView
 
 urlpatterns = [
     path("admin/", admin.site.urls),
+    path("", include("fleetpage.urls")),
     path("openapi.json", SpectacularJSONAPIView.as_view(), name="openapi"),
     path("docs", SpectacularSwaggerView.as_view(url_name="openapi"), name="docs"),
     path("health", HealthView.as_view(), name="health"),

@@ -1,0 +1,6 @@
+from django.apps import AppConfig
+
+
+class FleetPageConfig(AppConfig):
+    name = "fleetpage"
+    verbose_name = "Live fleet page"

@@ -1,0 +1,519 @@
+// The live fleet page (/fleet): robots on a map per map_id, a robot's panel (its queue and its mission's
+// tree), and the mission list, kept live by the server-sent events of GET /events. An event only records
+// the object and marks it changed; once per animation frame the page redraws what changed (a marker moved,
+// a row refilled), so a thousand robots moving cost a thousand marker moves per frame at most, never a
+// redraw of everything per event.
+
+const config = JSON.parse(document.getElementById("fleet-config").textContent);
+const csrfToken = document.querySelector('meta[name="csrf-token"]').content;
+const DEFAULT_MAP = ""; // the map of robots whose pose names none, shown as "default"
+const LIST_ROWS = 200; // mission rows shown at most; the filters find the others
+const CROWDED = 60; // more robots than this on the map shown: names only for the selected robot
+const RECONNECT_MS = 5000; // after the server refused the stream (EventSource retries the rest itself)
+const NOTICE_MS = 10000;
+const DONE = new Set(config.done_states);
+const NODE_FIELDS = new Set(["name", "parent"]); // a node's other non-null field is its kind
+
+const robots = new Map(); // name -> robot, as GET /robot/{name} has it
+const missions = new Map(); // name -> mission, as GET /mission/{name} has it; in the order first seen
+const changed = { robots: new Set(), missions: new Set(), missionRobots: new Set(), maps: false };
+let frame = 0;
+let received = null; // names sent since the stream (re)opened: after a snapshot, the others are gone
+let snapshotDone = false;
+let shownMap = null;
+let fitPending = true;
+let selected = null; // the robot whose panel is open
+let queueOrder = []; // its queued missions in queue order, as GET /mission listed them
+let shownTree = null; // {name, items: Map(node name -> <li>)} of the tree in the panel
+let noticeTimer = 0;
+
+const $ = (id) => document.getElementById(id);
+
+// --- the map ------------------------------------------------------------------------------------------
+
+// CRS.Simple: one map unit is one of the robots' metres, y up.
+const map = L.map("map", { crs: L.CRS.Simple, minZoom: -6, maxZoom: 7, zoomSnap: 0.25, attributionControl: false });
+map.setView([0, 0], 4);
+L.control.scale({ imperial: false }).addTo(map);
+const Grid = L.GridLayer.extend({ createTile: gridTile });
+new Grid({ tileSize: 256 }).addTo(map);
+const markerLayer = L.layerGroup().addTo(map);
+const markers = new Map(); // robot name -> L.Marker, for the robots on the map shown
+const ROBOT_ICON = L.divIcon({
+  className: "robot",
+  iconSize: [22, 22],
+  html: '<div class="robot-heading"></div><div class="robot-body"></div>' +
+    '<div class="robot-battery"><span></span></div><div class="robot-name"></div>',
+});
+
+function gridTile(coords) {
+  // Lines every 1, 2 or 5 x 10^k metres, at least 40 px apart at this zoom (2^z pixels per metre).
+  const tile = document.createElement("canvas");
+  const size = this.getTileSize();
+  tile.width = size.x;
+  tile.height = size.y;
+  const scale = 2 ** coords.z;
+  const decade = 10 ** Math.ceil(Math.log10(40 / scale));
+  const step = [0.2, 0.5, 1].map((f) => f * decade).find((s) => s * scale >= 40) * scale;
+  const context = tile.getContext("2d");
+  context.strokeStyle = "#e3e8ee";
+  context.beginPath();
+  const left = coords.x * size.x;
+  const top = coords.y * size.y;
+  for (let x = Math.ceil(left / step) * step - left; x < size.x; x += step) {
+    context.moveTo(Math.round(x) + 0.5, 0);
+    context.lineTo(Math.round(x) + 0.5, size.y);
+  }
+  for (let y = Math.ceil(top / step) * step - top; y < size.y; y += step) {
+    context.moveTo(0, Math.round(y) + 0.5);
+    context.lineTo(size.x, Math.round(y) + 0.5);
+  }
+  context.stroke();
+  return tile;
+}
+
+function mapOf(robot) {
+  return robot.status.pose.map_id || DEFAULT_MAP;
+}
+
+function condition(robot) {
+  const status = robot.status;
+  if (!status.online) return "offline";
+  if (Object.keys(status.errors ?? {}).length) return "error";
+  if (status.state === "TELEOP") return "teleop";
+  if (status.state === "ON_TASK") return "mission";
+  return "idle";
+}
+
+function describe(robot) {
+  const { pose, state, online, battery_level: battery } = robot.status;
+  const degrees = Math.round((pose.theta * 180) / Math.PI);
+  return `${robot.name}: ${state}, ${online ? "online" : "offline"}, battery ${Math.round(battery)}%, ` +
+    `at (${pose.x.toFixed(2)}, ${pose.y.toFixed(2)}) heading ${degrees}°`;
+}
+
+function drawRobot(name) {
+  const robot = robots.get(name);
+  let marker = markers.get(name);
+  if (!robot || mapOf(robot) !== shownMap) {
+    if (marker) markerLayer.removeLayer(marker);
+    markers.delete(name);
+    return;
+  }
+  const { pose, battery_level: battery } = robot.status;
+  if (marker) {
+    marker.setLatLng([pose.y, pose.x]);
+  } else {
+    marker = L.marker([pose.y, pose.x], { icon: ROBOT_ICON, keyboard: false }).on("click", () => select(name));
+    markerLayer.addLayer(marker);
+    markers.set(name, marker);
+    const element = marker.getElement();
+    element.dataset.robot = name;
+    element.querySelector(".robot-name").textContent = name;
+    marker.parts = { heading: element.querySelector(".robot-heading"), battery: element.querySelector(".robot-battery span") };
+  }
+  const element = marker.getElement();
+  element.dataset.condition = condition(robot);
+  element.title = describe(robot);
+  element.classList.toggle("selected", name === selected);
+  marker.parts.heading.style.transform = `rotate(${-pose.theta}rad)`;
+  marker.parts.battery.style.width = `${Math.min(100, Math.max(0, battery))}%`;
+}
+
+function updateMapChoice() {
+  const counts = new Map();
+  for (const robot of robots.values()) counts.set(mapOf(robot), (counts.get(mapOf(robot)) ?? 0) + 1);
+  if (!counts.has(shownMap) && counts.size) {
+    // None shown yet, or the robots left the one shown (robots come on the default map until they report
+    // their pose): the map with the most robots.
+    showMap([...counts].sort((a, b) => b[1] - a[1])[0][0]);
+  }
+  const choice = $("map-choice");
+  const ids = [...counts.keys()].sort();
+  choice.replaceChildren(...ids.map((id) => new Option(`${id || "default"} (${counts.get(id)})`, id)));
+  choice.value = shownMap ?? "";
+}
+
+function showMap(id) {
+  shownMap = id;
+  markerLayer.clearLayers();
+  markers.clear();
+  for (const name of robots.keys()) drawRobot(name);
+  fitPending = true;
+}
+
+function fitRobots() {
+  const points = [...markers.values()].map((marker) => marker.getLatLng());
+  if (points.length) map.fitBounds(L.latLngBounds(points).pad(0.15), { maxZoom: 5 });
+}
+
+// --- the stream -----------------------------------------------------------------------------------------
+
+function connect() {
+  const url = new URL(config.events_url, location.href);
+  url.searchParams.set("mission.most_recent", config.mission_snapshot);
+  const source = new EventSource(url);
+  source.addEventListener("open", () => {
+    received = { robot: new Set(), mission: new Set() };
+    showStream("live");
+  });
+  source.addEventListener("robot", (event) => receive("robot", JSON.parse(event.data)));
+  source.addEventListener("mission", (event) => receive("mission", JSON.parse(event.data)));
+  source.addEventListener("snapshot_end", () => {
+    forgetUnsent();
+    snapshotDone = true;
+    scheduleFrame();
+  });
+  source.addEventListener("error", (event) => {
+    if (event.data) {
+      // The server's error event, which ends the stream; EventSource then reconnects by itself.
+      const { error, detail } = JSON.parse(event.data);
+      notify(`Stream: ${error}: ${detail}`, true);
+    } else if (source.readyState === EventSource.CLOSED) {
+      // Refused (not a 200 event stream): EventSource gives up, the page tries again a while later.
+      showStream("down");
+      setTimeout(connect, RECONNECT_MS);
+    } else {
+      showStream("reconnecting");
+    }
+  });
+}
+
+function showStream(state) {
+  $("stream").dataset.stream = state;
+  $("stream").textContent = state;
+}
+
+function receive(kind, object) {
+  received?.[kind].add(object.name);
+  const deleted = object.lifecycle === "DELETED";
+  if (kind === "robot") {
+    const before = robots.get(object.name);
+    if (!before || deleted || mapOf(before) !== mapOf(object)) changed.maps = true;
+    deleted ? robots.delete(object.name) : robots.set(object.name, object);
+    changed.robots.add(object.name);
+  } else {
+    deleted ? missions.delete(object.name) : missions.set(object.name, object);
+    changed.missions.add(object.name);
+    changed.missionRobots.add(object.robot);
+  }
+  scheduleFrame();
+}
+
+function forgetUnsent() {
+  // A snapshot names every object there is: the ones it left out were deleted while the page was away.
+  for (const [name, robot] of robots) {
+    if (!received.robot.has(name)) receive("robot", { ...robot, lifecycle: "DELETED" });
+  }
+  for (const [name, mission] of missions) {
+    if (!received.mission.has(name)) receive("mission", { ...mission, lifecycle: "DELETED" });
+  }
+}
+
+function trimMissions() {
+  // The page keeps as many missions as its snapshot had at most: finished ones go first, oldest first.
+  let excess = missions.size - config.mission_snapshot;
+  for (const [name, mission] of missions) {
+    if (excess <= 0) return;
+    if (DONE.has(mission.status.state)) {
+      missions.delete(name);
+      changed.missions.add(name);
+      excess -= 1;
+    }
+  }
+}
+
+function scheduleFrame() {
+  if (!frame) frame = requestAnimationFrame(flush);
+}
+
+function flush() {
+  frame = 0;
+  trimMissions();
+  if (changed.maps) updateMapChoice();
+  for (const name of changed.robots) drawRobot(name);
+  if (fitPending && snapshotDone && markers.size) {
+    fitRobots();
+    fitPending = false;
+  }
+  $("map").classList.toggle("crowded", markers.size > CROWDED);
+  if (changed.missions.size || changed.list) drawMissionList();
+  if (selected && (changed.panel || changed.robots.has(selected) || changed.missionRobots.has(selected))) {
+    drawPanel();
+  }
+  drawCounts();
+  changed.robots.clear();
+  changed.missions.clear();
+  changed.missionRobots.clear();
+  changed.maps = changed.list = changed.panel = false;
+}
+
+function drawCounts() {
+  let online = 0;
+  for (const robot of robots.values()) online += robot.status.online ? 1 : 0;
+  $("counts").textContent = `${robots.size} robots, ${online} online · ${missions.size} missions`;
+}
+
+// --- the mission list -------------------------------------------------------------------------------------
+
+const rows = new Map(); // mission name -> its <tr>
+
+function missionShown(mission) {
+  const state = $("filter-state").value;
+  const robot = $("filter-robot").value.trim().toLowerCase();
+  const name = $("filter-name").value.trim().toLowerCase();
+  return (!state || mission.status.state === state) &&
+    (!robot || mission.robot.toLowerCase().includes(robot)) &&
+    (!name || mission.name.toLowerCase().includes(name));
+}
+
+function newestFirst(missionList) {
+  // As GET /mission?most_recent has them: not started first, then by start time, newest first.
+  const started = (mission) => (mission.status.start_timestamp ? Date.parse(mission.status.start_timestamp) : Infinity);
+  return missionList
+    .map((mission) => [started(mission), mission])
+    .sort((a, b) => (b[0] > a[0]) - (b[0] < a[0]))
+    .map(([, mission]) => mission);
+}
+
+function drawMissionList() {
+  const shown = newestFirst([...missions.values()].filter(missionShown));
+  const visible = shown.slice(0, LIST_ROWS);
+  const names = new Set(visible.map((mission) => mission.name));
+  for (const [name, row] of rows) {
+    if (!names.has(name)) {
+      row.remove();
+      rows.delete(name);
+    }
+  }
+  const body = $("mission-rows");
+  let previous = null;
+  for (const mission of visible) {
+    let row = rows.get(mission.name);
+    if (!row) {
+      row = missionRow(mission.name);
+      rows.set(mission.name, row);
+      fillMissionRow(row, mission);
+    } else if (changed.missions.has(mission.name)) {
+      fillMissionRow(row, mission);
+    }
+    const there = previous ? previous.nextElementSibling : body.firstElementChild;
+    if (there !== row) (previous ? previous.after(row) : body.prepend(row));
+    previous = row;
+  }
+  $("mission-count").textContent = shown.length > visible.length ? `${visible.length} of ${shown.length}` : `${shown.length}`;
+}
+
+function missionRow(name) {
+  const row = document.createElement("tr");
+  row.dataset.mission = name;
+  row.innerHTML = '<td class="name"></td><td><button type="button" class="link robot-link"></button></td>' +
+    '<td><span class="state"></span></td><td class="node"></td><td class="started"></td>' +
+    '<td><button type="button" class="cancel">Cancel</button></td>';
+  row.querySelector(".name").textContent = name;
+  return row;
+}
+
+function fillMissionRow(row, mission) {
+  const { state, current_node: current, start_timestamp: started, failure_reason: failure } = mission.status;
+  row.dataset.state = state;
+  row.querySelector(".robot-link").textContent = mission.robot;
+  row.querySelector(".state").textContent = state;
+  row.querySelector(".state").dataset.state = state;
+  row.querySelector(".state").title = failure ?? mission.status.waiting_reason ?? "";
+  row.querySelector(".node").textContent = mission.mission_tree[current]?.name ?? "";
+  row.querySelector(".started").textContent = started ? new Date(started).toLocaleTimeString() : "";
+  row.querySelector(".cancel").hidden = DONE.has(state);
+}
+
+// --- the robot's panel ------------------------------------------------------------------------------------
+
+async function select(name) {
+  const previous = selected;
+  selected = name;
+  queueOrder = [];
+  shownTree = null;
+  $("robot-panel").hidden = name === null;
+  if (previous) drawRobot(previous);
+  if (name === null) return;
+  drawRobot(name);
+  changed.panel = true;
+  scheduleFrame();
+  const url = new URL(config.mission_list_url, location.href);
+  url.search = new URLSearchParams({ robot: name, state: "PENDING" });
+  const response = await fetch(url, { credentials: "same-origin" });
+  if (response.ok && selected === name) {
+    queueOrder = (await response.json()).map((mission) => mission.name);
+    changed.panel = true;
+    scheduleFrame();
+  }
+}
+
+function drawPanel() {
+  const robot = robots.get(selected);
+  $("robot-name").textContent = selected;
+  if (!robot) {
+    $("robot-facts").replaceChildren(fact("Robot", "deleted"));
+    return;
+  }
+  const { state, online, battery_level: battery, pose, errors } = robot.status;
+  $("robot-facts").replaceChildren(
+    fact("State", `${state} (${condition(robot)})`),
+    fact("Online", online ? "yes" : "no"),
+    fact("Battery", `${Math.round(battery)}%`),
+    fact("Pose", `(${pose.x.toFixed(2)}, ${pose.y.toFixed(2)}), ${Math.round((pose.theta * 180) / Math.PI)}°, map ${pose.map_id || "default"}`),
+    fact("Teleop", robot.switch_teleop ? "requested" : "off"),
+    fact("Errors", Object.keys(errors ?? {}).join(", ") || "none"),
+  );
+  const own = [...missions.values()].filter((mission) => mission.robot === selected);
+  const queuePlace = (mission) => {
+    const place = queueOrder.indexOf(mission.name);
+    return place < 0 ? Infinity : place;
+  };
+  const queue = [
+    ...own.filter((mission) => mission.status.state === "RUNNING"),
+    ...own.filter((mission) => mission.status.state === "PENDING").sort((a, b) => queuePlace(a) - queuePlace(b) || 0),
+  ];
+  $("robot-queue").replaceChildren(...queue.map(queueItem));
+  const latest = newestFirst(own.filter((mission) => mission.status.start_timestamp))[0];
+  drawTree(queue[0]?.status.state === "RUNNING" ? queue[0] : latest);
+}
+
+function fact(term, value) {
+  const row = document.createElement("div");
+  const dt = document.createElement("dt");
+  const dd = document.createElement("dd");
+  dt.textContent = term;
+  dd.textContent = value;
+  row.append(dt, dd);
+  return row;
+}
+
+function queueItem(mission) {
+  const item = document.createElement("li");
+  item.dataset.mission = mission.name;
+  item.dataset.state = mission.status.state;
+  item.textContent = `${mission.name} ${mission.status.state}`;
+  if (mission.status.waiting_reason) item.title = mission.status.waiting_reason;
+  const cancel = document.createElement("button");
+  cancel.type = "button";
+  cancel.className = "cancel";
+  cancel.textContent = "Cancel";
+  item.append(" ", cancel);
+  return item;
+}
+
+function drawTree(mission) {
+  if (!mission) {
+    shownTree = null;
+    $("tree-title").textContent = "Mission tree";
+    $("robot-tree").replaceChildren();
+    return;
+  }
+  if (shownTree?.name !== mission.name) shownTree = { name: mission.name, items: buildTree(mission) };
+  const { state, node_status: nodes, current_node: current } = mission.status;
+  $("tree-title").textContent = `Mission ${mission.name}: ${state}`;
+  const currentName = state === "RUNNING" ? mission.mission_tree[current]?.name : undefined;
+  for (const [name, item] of shownTree.items) {
+    const status = nodes[name] ?? { state: "PENDING", error_msg: null };
+    item.dataset.state = status.state;
+    item.querySelector(":scope > .node-state").textContent = status.state;
+    item.title = status.error_msg ?? "";
+    item.classList.toggle("current", name === currentName);
+  }
+}
+
+function buildTree(mission) {
+  // The tree as nested lists: "root" first, each node under its parent, in mission_tree's order.
+  const items = new Map();
+  const nodeItem = (name, kind) => {
+    const item = document.createElement("li");
+    item.dataset.node = name;
+    item.innerHTML = '<span class="node-state"></span> <span class="node-name"></span> <span class="node-kind"></span>';
+    item.querySelector(".node-name").textContent = name;
+    item.querySelector(".node-kind").textContent = kind;
+    items.set(name, item);
+    return item;
+  };
+  const root = document.createElement("ul");
+  root.append(nodeItem("root", "sequence"));
+  for (const node of mission.mission_tree) {
+    const kind = Object.keys(node).find((key) => !NODE_FIELDS.has(key) && node[key] !== null);
+    const parent = items.get(node.parent);
+    let children = parent.querySelector(":scope > ul");
+    if (!children) children = parent.appendChild(document.createElement("ul"));
+    children.append(nodeItem(node.name, kind));
+  }
+  $("robot-tree").replaceChildren(root);
+  return items;
+}
+
+// --- operator actions, through the REST API with the session --------------------------------------------
+
+function fill(template, name) {
+  return template.replace(config.name_placeholder, encodeURIComponent(name));
+}
+
+async function act(url, what) {
+  try {
+    const response = await fetch(url, { method: "POST", headers: { "X-CSRFToken": csrfToken }, credentials: "same-origin" });
+    if (!response.ok) throw new Error(apiError(await response.json().catch(() => null), response.status));
+    notify(`${what}: done`);
+  } catch (error) {
+    notify(`${what} failed: ${error.message}`, true);
+  }
+}
+
+function apiError(body, status) {
+  // The API's three error bodies (README, "REST API"): a usage error, a missing object, schema errors.
+  if (body?.message) return body.message;
+  if (typeof body?.detail === "string") return body.detail;
+  if (Array.isArray(body?.detail)) return body.detail.map((error) => error.msg).join("; ");
+  return `HTTP ${status}`;
+}
+
+function cancelMission(name) {
+  if (confirm(`Cancel mission ${name}?`)) act(fill(config.mission_cancel_url, name), `Cancel ${name}`);
+}
+
+function teleop(params) {
+  const url = new URL(fill(config.robot_teleop_url, selected), location.href);
+  url.searchParams.set("params", params);
+  act(url, `Teleop ${params} for ${selected}`);
+}
+
+function notify(text, failed = false) {
+  $("notice").textContent = text;
+  $("notice").classList.toggle("failed", failed);
+  clearTimeout(noticeTimer);
+  noticeTimer = setTimeout(() => { $("notice").textContent = ""; }, NOTICE_MS);
+}
+
+// --- wiring -----------------------------------------------------------------------------------------------
+
+function listChanged() {
+  changed.list = true;
+  scheduleFrame();
+}
+
+function onMissionButton(event) {
+  const button = event.target.closest("button");
+  const mission = button?.closest("[data-mission]")?.dataset.mission;
+  if (!mission) return;
+  if (button.classList.contains("cancel")) cancelMission(mission);
+  else if (button.classList.contains("robot-link")) select(missions.get(mission)?.robot ?? null);
+}
+
+for (const state of config.mission_states) $("filter-state").append(new Option(state, state));
+for (const id of ["filter-state", "filter-robot", "filter-name"]) $(id).addEventListener("input", listChanged);
+$("mission-rows").addEventListener("click", onMissionButton);
+$("robot-queue").addEventListener("click", onMissionButton);
+$("map-choice").addEventListener("change", (event) => {
+  showMap(event.target.value);
+  scheduleFrame();
+});
+$("fit").addEventListener("click", fitRobots);
+$("robot-close").addEventListener("click", () => select(null));
+$("teleop-start").addEventListener("click", () => teleop("START"));
+$("teleop-stop").addEventListener("click", () => teleop("STOP"));
+connect();

@@ -1,0 +1,31 @@
+"""The live fleet page (GET /fleet): one HTML page for a logged-in staff user; everything on it comes from the
+API's server-sent events (GET /events) and goes back through the REST API with the same session."""
+
+from django.conf import settings
+from django.contrib.admin.views.decorators import staff_member_required
+from django.http import HttpRequest, HttpResponse
+from django.shortcuts import render
+from django.urls import reverse
+
+from missions.vocabulary import DONE_STATES, MissionState
+
+# Stands for an object's name in the URL templates the page fills in (no name can make it appear twice:
+# the template is filled, not the name).
+NAME = "__name__"
+
+
+@staff_member_required
+def fleet_page(request: HttpRequest) -> HttpResponse:
+    """The page and what its script needs to know: where the events and the API's actions are, and the
+    mission states to filter by."""
+    config = {
+        "events_url": reverse("events"),
+        "mission_snapshot": settings.PAGE_MISSIONS,
+        "mission_list_url": reverse("mission-list"),
+        "mission_cancel_url": reverse("mission-cancel", kwargs={"name": NAME}),
+        "robot_teleop_url": reverse("robot-teleop", kwargs={"name": NAME}),
+        "name_placeholder": NAME,
+        "mission_states": list(MissionState),
+        "done_states": sorted(DONE_STATES),
+    }
+    return render(request, "fleetpage/fleet.html", {"config": config})
