@@ -6,6 +6,7 @@ import re
 
 import pytest
 from django.contrib.staticfiles import finders
+from django.core.management import call_command
 from django.test import Client
 from django.urls import reverse
 
@@ -73,6 +74,20 @@ def test_every_script_and_stylesheet_is_ours():
     for source in sources:
         assert finders.find(source.removeprefix("/static/")), source
     assert finders.find("vendor/leaflet/LICENSE")
+
+
+def test_collectstatic_gathers_the_pages_files(tmp_path, settings):
+    """`make run` collects the static files, which whitenoise serves: the page's are among them."""
+    settings.STATIC_ROOT = tmp_path
+    call_command("collectstatic", interactive=False, verbosity=0)
+
+    for name in (
+        "fleetpage/fleet.js",
+        "fleetpage/fleet.css",
+        "vendor/leaflet/leaflet.js",
+        "vendor/leaflet/LICENSE",
+    ):
+        assert (tmp_path / name).is_file(), name
 
 
 def test_the_admin_links_to_the_page():

@@ -101,24 +101,45 @@ function drawRobot(name) {
     return;
   }
   const { pose, battery_level: battery } = robot.status;
-  if (marker) {
-    marker.setLatLng([pose.y, pose.x]);
-  } else {
-    marker = L.marker([pose.y, pose.x], { icon: ROBOT_ICON, keyboard: false }).on("click", () => select(name));
+  const position = L.latLng(pose.y, pose.x);
+  if (!marker) {
+    marker = L.marker(position, { icon: ROBOT_ICON, keyboard: false }).on("click", () => select(name));
     markerLayer.addLayer(marker);
     markers.set(name, marker);
     const element = marker.getElement();
     element.dataset.robot = name;
     element.querySelector(".robot-name").textContent = name;
-    marker.parts = { heading: element.querySelector(".robot-heading"), battery: element.querySelector(".robot-battery span") };
+    marker.parts = {
+      element,
+      heading: element.querySelector(".robot-heading"),
+      battery: element.querySelector(".robot-battery span"),
+    };
+    marker.looks = {};
+  } else if (!marker.getLatLng().equals(position)) {
+    marker.setLatLng(position);
   }
-  const element = marker.getElement();
-  element.dataset.condition = condition(robot);
-  element.title = describe(robot);
-  element.classList.toggle("selected", name === selected);
-  marker.parts.heading.style.transform = `rotate(${-pose.theta}rad)`;
-  marker.parts.battery.style.width = `${Math.min(100, Math.max(0, battery))}%`;
+  const looks = {
+    condition: condition(robot),
+    title: describe(robot),
+    selected: name === selected,
+    heading: `rotate(${-pose.theta}rad)`,
+    battery: `${Math.min(100, Math.max(0, battery))}%`,
+  };
+  for (const [look, value] of Object.entries(looks)) {
+    // Only what changed: each write has the browser restyle the marker.
+    if (marker.looks[look] !== value) LOOKS[look](marker.parts, value);
+  }
+  marker.looks = looks;
 }
+
+// How each look of a marker is drawn.
+const LOOKS = {
+  condition: (parts, value) => { parts.element.dataset.condition = value; },
+  title: (parts, value) => { parts.element.title = value; },
+  selected: (parts, value) => parts.element.classList.toggle("selected", value),
+  heading: (parts, value) => { parts.heading.style.transform = value; },
+  battery: (parts, value) => { parts.battery.style.width = value; },
+};
 
 function updateMapChoice() {
   const counts = new Map();
@@ -322,7 +343,7 @@ function fillMissionRow(row, mission) {
   row.querySelector(".state").dataset.state = state;
   row.querySelector(".state").title = failure ?? mission.status.waiting_reason ?? "";
   row.querySelector(".node").textContent = mission.mission_tree[current]?.name ?? "";
-  row.querySelector(".started").textContent = started ? new Date(started).toLocaleTimeString() : "";
+  row.querySelector(".started").textContent = started ? new Date(started).toLocaleTimeString([], { hourCycle: "h23" }) : "";
   row.querySelector(".cancel").hidden = DONE.has(state);
 }
 
