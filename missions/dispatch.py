@@ -504,7 +504,12 @@ def _follow_order(
             mission.order_accepted = True
         elif _resend_due(result, state, state_arrived_at, mission, tree, leaf, sent, now, settings):
             if sent.ahead is not None and not leaf_order_held:
-                sent = _drop_ahead(mission, sent, state)  # no robot takes an update of an order it lacks
+                # No robot takes an update of an order it lacks: both again, in order. Not the order alone
+                # with the update dropped: the first sending may still reach the robot (a broker that was
+                # away delivers it late), and a robot holding the update would then drive the next route
+                # twice. One that has both takes neither again (an equal orderUpdateId is a resend, a lower
+                # one an orderUpdateError about that id only, which `order_rejection` does not count).
+                result.messages.append(Outgoing(sent.message))
             mission.order_sent_at = now
             result.messages.append(Outgoing(sent.latest))
         if not leaf_order_held:

@@ -338,16 +338,37 @@ def test_an_unacknowledged_update_is_re_sent_identically_while_the_robot_drives_
     assert dispatcher.mission.order_sent_at == dispatcher.now
 
 
-def test_a_robot_that_lacks_the_first_order_gets_it_again_and_the_update_is_dropped() -> None:
+def test_a_robot_that_lacks_the_first_order_gets_it_again_and_the_update_right_behind_it() -> None:
     dispatcher = started(R1, R2)
-    base = leaf_message(dispatcher)
+    base, update = leaf_message(dispatcher), ahead(dispatcher)
 
     result = dispatcher.step(robot_state(), after=4.0)
 
-    [again] = orders_sent(result)
-    assert wire(again) == wire(base)
-    assert (sent(dispatcher).message, sent(dispatcher).ahead) == (base, None)
+    assert [wire(order) for order in orders_sent(result)] == [wire(base), wire(update)]
+    assert (sent(dispatcher).message, sent(dispatcher).ahead) == (base, update)
     assert dispatcher.mission.order_accepted is False
+
+
+def test_a_first_sending_delivered_late_beside_the_resend_runs_the_next_route_once() -> None:
+    """Fault suite seed 964301: the broker delivered the first order and its update late, right before
+    the resend; the robot took both and answered the resent order with an orderUpdateError about it."""
+    dispatcher = started(R1, R2)
+    base = leaf_message(dispatcher)
+    dispatcher.step(robot_state(), after=4.0)  # both re-sent
+    late = error(
+        "orderUpdateError", ErrorLevel.WARNING, "lower", orderId=base.order_id, orderUpdateId=str(0)
+    )
+
+    holding = dispatcher.step(on_order(dispatcher.order, 2, errors=[late], driving=True), after=1.0)
+    assert not holding.rejected
+    assert dispatcher.mission.order_accepted is True
+
+    on_r2 = dispatcher.step(on_order(dispatcher.order, 6, errors=[late], driving=True), after=1.0)
+    assert orders_sent(on_r2) == []  # r2 runs on the update the robot holds: no order of its own
+    assert (dispatcher.node("r1"), dispatcher.node("r2")) == (MissionState.COMPLETED, MissionState.RUNNING)
+
+    done = dispatcher.step(finished(dispatcher.order, errors=[late]), after=1.0)
+    assert (orders_sent(done), dispatcher.mission.state) == ([], MissionState.COMPLETED)
 
 
 def test_a_refused_first_order_fails_its_leaf_as_before() -> None:

@@ -347,6 +347,7 @@ def check_leaves(
     by_name = {m.name: m for m in posted}
     taken = updates_taken(messages)
     wire: dict[str, list[tuple[int, str, WireMessage]]] = defaultdict(list)
+    sent_before: set[tuple[str, str, int]] = set()
     for message in messages:
         if message.kind != "order" or message.data is None:
             continue
@@ -358,6 +359,10 @@ def check_leaves(
         update = int(message.data.get("orderUpdateId") or 0)
         if update and taken.get((message.serial, str(message.data.get("orderId"))), 0) < update:
             continue
+        sending = (message.serial, str(message.data.get("orderId")), update)
+        if sending in sent_before:
+            continue  # a resend (check 2 compares its content), not a step back to its leaf
+        sent_before.add(sending)
         wire[parsed[0]].append((parsed[1], order_id, message))
     for mission in posted:
         leaf_names = dict(mission.leaves)

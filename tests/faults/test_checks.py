@@ -241,6 +241,19 @@ def test_a_leaf_sent_ahead_never_taken_then_ordered_on_its_own_is_reached_once()
     assert result.ok, result.problems
 
 
+def test_an_order_and_its_update_re_sent_after_the_robot_took_both_go_back_to_no_leaf():
+    messages = [
+        order(1, "r1", "m1-n0-r0", 0),
+        ahead(1.1, "r1", "m1-n0-r0", 1, "m1-n1-r0"),
+        order(5, "r1", "m1-n0-r0", 2),  # re-sent, the first sending still on its way
+        ahead(5.1, "r1", "m1-n0-r0", 3, "m1-n1-r0"),
+        taken(6, "r1", "m1-n0-r0", 1),
+    ]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+    result = checks.check_leaves([M1], final, messages, [])
+    assert result.ok, result.problems
+
+
 def test_a_leaf_sent_ahead_and_taken_then_ordered_again_is_reached_twice():
     messages = [
         order(1, "r1", "m1-n0-r0", 0),
