@@ -263,13 +263,29 @@ VDA5050_INTERFACE_NAME = env_str("FLEET_VDA5050_INTERFACE_NAME", "uagv")
 VDA5050_MANUFACTURER = env_str("FLEET_VDA5050_MANUFACTURER", "RobotCompany")
 VDA5050_VERSION = env_str("FLEET_VDA5050_VERSION", "2.0.0")
 
+# `plain`: a line of text per record, on stderr; `json`: a JSON object per line (fleet.logs.JsonFormatter)
+# on stdout, for container platforms' log collectors.
+LOG_FORMAT = env_str("FLEET_LOG_FORMAT", "plain")
+if LOG_FORMAT not in {"plain", "json"}:
+    raise ImproperlyConfigured(f"FLEET_LOG_FORMAT must be plain or json, not {LOG_FORMAT!r}")
 LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,
-    "formatters": {"plain": {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"}},
-    "handlers": {"console": {"class": "logging.StreamHandler", "formatter": "plain"}},
+    "formatters": {
+        "plain": {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"},
+        "json": {"()": "fleet.logs.JsonFormatter"},
+    },
+    "handlers": {
+        "console": {
+            "class": "logging.StreamHandler",
+            "stream": "ext://sys.stdout" if LOG_FORMAT == "json" else "ext://sys.stderr",
+            "formatter": LOG_FORMAT,
+        }
+    },
     "root": {"handlers": ["console"], "level": env_str("FLEET_LOG_LEVEL", "INFO")},
 }
+# Celery's worker and beat replace the root logger's handlers with their own text format unless told not to.
+CELERY_WORKER_HIJACK_ROOT_LOGGER = LOG_FORMAT == "plain"
 APPEND_SLASH = False
 
 # --- Dispatch engine ------------------------------------------------------------------------------
