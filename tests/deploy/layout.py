@@ -2,6 +2,7 @@
 
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -19,8 +20,9 @@ def procfile_processes() -> list[str]:
 
 
 def tool(name: str, how: str) -> str:
-    """The path of the command-line tool `name`, or a skip that says how to install it."""
-    path = shutil.which(name)
+    """The path of the command-line tool `name` (on the PATH or in the test's own virtual environment), or a
+    skip that says how to install it."""
+    path = shutil.which(name) or shutil.which(name, path=str(Path(sys.executable).parent))
     if path is None:
         pytest.skip(f"{name} not found: {how}")
     return path

@@ -38,7 +38,8 @@ def pod_spec(resource: dict[str, Any]) -> dict[str, Any]:
 @pytest.mark.parametrize("kustomization", KUSTOMIZATIONS)
 def test_renders_and_passes_schema_validation(kustomization: str, tmp_path):
     validator = tool(
-        "kubernetes-validate", "pip install kubernetes-validate==1.37.0 (in a venv of its own, on the PATH)"
+        "kubernetes-validate",
+        "pip install kubernetes-validate==1.37.0 (on the PATH, or into the venv running the tests)",
     )
     rendered = tmp_path / "rendered.yaml"
     rendered.write_text(yaml.safe_dump_all(render(kustomization)))
