@@ -41,18 +41,14 @@ def test_workers_scale_and_beat_is_one():
     for name in ("worker", "beat"):
         assert "container_name" not in SERVICES[name]
         assert "ports" not in SERVICES[name]
-        assert "deploy" not in SERVICES[name]
+    assert SERVICES["worker"]["deploy"] == {"replicas": "${FLEET_COMPOSE_WORKERS:-1}"}
+    assert "deploy" not in SERVICES["beat"]
     assert "scale" not in SERVICES["beat"]
 
 
 def test_servers_have_health_checks_of_their_role():
     for role in ("api", "stream", "bridge", "worker", "notify", "beat"):
-        assert SERVICES[role]["healthcheck"]["test"] == [
-            "CMD",
-            "/app/deploy/container/entrypoint",
-            "health",
-            role,
-        ]
+        assert SERVICES[role]["healthcheck"]["test"] == f"/app/deploy/container/entrypoint health {role}"
 
 
 def test_the_servers_are_configured_by_fleet_variables_and_secret_files_only():

@@ -97,6 +97,7 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict[
         STREAM_PUBLISHED_PORT=str(free_port()),
         MQTT_TLS_PUBLISHED_PORT=str(free_port()),
         MQTT_PLAIN_PUBLISHED_PORT=str(free_port()),
+        FLEET_COMPOSE_WORKERS="2",
     )
     compose = ["podman-compose", "-p", PROJECT, "-f", str(DEPLOY / "compose.yaml")]
     down(compose, env)
@@ -207,10 +208,22 @@ def test_the_servers_log_json_lines(stack: tuple[str, dict[str, str]], role: str
         assert set(json.loads(line)) >= {"time", "level", "logger", "message"}, line
 
 
-@pytest.mark.parametrize("role", ["api", "stream", "bridge", "worker", "notify", "beat"])
-def test_every_server_role_passes_its_health_check(stack: tuple[str, dict[str, str]], role: str):
+@pytest.mark.parametrize(
+    ("container", "role"),
+    [
+        ("api_1", "api"),
+        ("stream_1", "stream"),
+        ("bridge_1", "bridge"),
+        ("worker_1", "worker"),
+        ("worker_2", "worker"),
+        ("notify_1", "notify"),
+        ("beat_1", "beat"),
+    ],
+)
+def test_every_server_passes_its_health_check(stack: tuple[str, dict[str, str]], container: str, role: str):
+    """Each of them, the two step workers (FLEET_COMPOSE_WORKERS=2) answering their own pings."""
     _, env = stack
-    command = ["podman", "exec", f"{PROJECT}_{role}_1", "/app/deploy/container/entrypoint", "health", role]
+    command = ["podman", "exec", f"{PROJECT}_{container}", "/app/deploy/container/entrypoint", "health", role]
     wait_for(
         lambda: subprocess.run(command, env=env, capture_output=True, timeout=60).returncode == 0,
         f"{role}'s health check",
