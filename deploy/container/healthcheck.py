@@ -2,7 +2,7 @@
 
     python deploy/container/healthcheck.py ROLE   (the image: `health ROLE`)
 
-- api, stream: `GET /health` on the process's port answers 200.
+- api: `GET /health` on its port answers 200.
 - worker, notify: the Celery worker of this host (`steps@HOST`, `notify@HOST`, the names deploy/Procfile
   gives them) answers a ping through the broker.
 - bridge, beat: PostgreSQL and Redis answer. These processes survive outages by themselves, so this is a
@@ -18,8 +18,8 @@ import urllib.request
 TIMEOUT_SECONDS = 5.0
 
 
-def http_health(port_variable: str, default_port: int) -> None:
-    port = int(os.environ.get(port_variable, default_port))
+def api_health() -> None:
+    port = int(os.environ.get("FLEET_API_PORT", 5000))
     with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=TIMEOUT_SECONDS) as response:
         if response.status != 200:
             raise RuntimeError(f"GET /health answered {response.status}")
@@ -48,8 +48,7 @@ def services_answer() -> None:
 
 
 CHECKS = {
-    "api": lambda: http_health("FLEET_API_PORT", 5000),
-    "stream": lambda: http_health("FLEET_STREAM_PORT", 5002),
+    "api": api_health,
     "worker": lambda: celery_ping("steps"),
     "notify": lambda: celery_ping("notify"),
     "bridge": services_answer,

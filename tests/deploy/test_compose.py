@@ -29,11 +29,16 @@ def test_every_procfile_process_is_a_service_running_its_role():
         assert SERVICES[process]["image"] == "${FLEET_IMAGE:-localhost/mission-dispatch:latest}"
 
 
+def test_every_service_of_our_image_runs_a_procfile_process_or_migrate():
+    ours = {name for name, service in SERVICES.items() if service["image"].startswith("${FLEET_IMAGE")}
+    assert ours == {*procfile_processes(), "migrate"}
+
+
 def test_migrate_runs_once_before_the_servers():
     assert SERVICES["migrate"]["command"] == ["migrate"]
     assert SERVICES["migrate"]["restart"] == "on-failure"
     assert SERVICES["migrate"]["depends_on"] == {"postgres": {"condition": "service_healthy"}}
-    for server in ("api", "stream", "bridge", "worker", "notify", "beat"):
+    for server in ("api", "bridge", "worker", "notify", "beat"):
         assert SERVICES[server]["depends_on"]["migrate"] == {"condition": "service_completed_successfully"}
 
 
@@ -47,7 +52,7 @@ def test_workers_scale_and_beat_is_one():
 
 
 def test_servers_have_health_checks_of_their_role():
-    for role in ("api", "stream", "bridge", "worker", "notify", "beat"):
+    for role in ("api", "bridge", "worker", "notify", "beat"):
         assert SERVICES[role]["healthcheck"]["test"] == f"/app/deploy/container/entrypoint health {role}"
 
 

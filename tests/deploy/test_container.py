@@ -94,7 +94,6 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict[
         FLEET_MOSQUITTO_IMAGE=SERVICE_IMAGES["mosquitto"],
         FLEET_COMPOSE_SECRETS=str(secrets),
         API_PUBLISHED_PORT=str(api_port),
-        STREAM_PUBLISHED_PORT=str(free_port()),
         MQTT_TLS_PUBLISHED_PORT=str(free_port()),
         MQTT_PLAIN_PUBLISHED_PORT=str(free_port()),
         FLEET_COMPOSE_WORKERS="2",
@@ -212,7 +211,6 @@ def test_the_servers_log_json_lines(stack: tuple[str, dict[str, str]], role: str
     ("container", "role"),
     [
         ("api_1", "api"),
-        ("stream_1", "stream"),
         ("bridge_1", "bridge"),
         ("worker_1", "worker"),
         ("worker_2", "worker"),

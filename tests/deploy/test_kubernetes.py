@@ -58,7 +58,8 @@ def test_every_server_process_is_a_deployment_running_its_role(example):
         (container,) = pod_spec(deployment)["containers"]
         assert container["args"] == [process]
         assert container["image"] == "registry.example.com/mission-dispatch:0.1.0"
-    assert not any(name.endswith("-simulator") for _, name in example)
+    deployments = {name for kind, name in example if kind == "Deployment"}
+    assert deployments == {f"mission-dispatch-{p}" for p in set(procfile_processes()) - DEMO_PROCESSES}
 
 
 def test_every_container_has_requests_limits_and_runs_as_non_root(example):
@@ -109,8 +110,6 @@ def test_api_probes_service_and_ingress(example):
         for path in example["Ingress", "mission-dispatch"]["spec"]["rules"][0]["http"]["paths"]
     }
     assert paths == {
-        "/robot/watch": "mission-dispatch-stream",
-        "/mission/watch": "mission-dispatch-stream",
         "/": "mission-dispatch-api",
     }
 
@@ -126,7 +125,7 @@ def test_migrations_run_in_a_job_and_new_pods_wait_for_them(example):
 
 def test_disruption_budgets_for_the_replicated_processes(example):
     budgets = {name for kind, name in example if kind == "PodDisruptionBudget"}
-    assert budgets == {f"mission-dispatch-{role}" for role in ("api", "stream", "bridge", "worker", "notify")}
+    assert budgets == {f"mission-dispatch-{role}" for role in ("api", "bridge", "worker", "notify")}
 
 
 def test_only_the_dispatchers_pods_reach_postgresql_and_redis(example):
