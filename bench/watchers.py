@@ -4,9 +4,12 @@ of the missions open meanwhile, on GET /events (server-sent events) or GET /miss
 What it reports (bench/README.md, "Watchers"):
 - delivery: every watcher must have had every transition of every mission the run completed (PENDING,
   RUNNING, COMPLETED, and each route node's), and each mission's sequence of objects must be the same on
-  every watcher; missions short of that are counted per watcher, as are dropped watchers and error events;
+  every watcher; missions short of that are counted per watcher, as are dropped watchers and error events.
+  With `--checked-watchers K`, K watchers parse every object and check its transitions; the others only
+  fingerprint each mission's objects (bytes, no parsing), which must match the checked ones': so hundreds
+  of watchers can be read on the server's own machine;
 - delivery latency: from the server's own time of a transition (a mission's start_timestamp for RUNNING,
-  end_timestamp for COMPLETED) to the watcher's reading of it, p50/p99/max over all watchers;
+  end_timestamp for COMPLETED) to the watcher's reading of it, p50/p99/max over the checked watchers;
 - REST latency meanwhile: GET /robot?names=... (10 robots) every PROBE_SECONDS, in the run's window;
 - the server's processes' memory and CPU over time: bench.fleet's own series (the `api` group is the
   process that serves the streams).
@@ -23,6 +26,7 @@ import json
 import logging
 import math
 import multiprocessing
+import re
 import sys
 import time
 import zlib
@@ -52,6 +56,10 @@ SPAWN = multiprocessing.get_context("spawn")
 
 STATE_LETTERS = {"PENDING": "P", "RUNNING": "R", "COMPLETED": "C", "FAILED": "F", "CANCELED": "X"}
 EVERY_TRANSITION = "PRC"  # PENDING, RUNNING, COMPLETED: of a completed mission and of each of its nodes
+# A mission's JSON as GET shows it (missions.api.serializers): its name after the tree's nodes' names, then
+# its status, state first.
+NAME_MARK = b',"name":"'
+COMPLETED_MARK = b'"status":{"state":"COMPLETED"'
 
 
 @dataclass
@@ -77,6 +85,7 @@ class Seen:
     latency_ms: Counter[int] = field(default_factory=Counter)  # transition -> read, 1-ms buckets
     errors: list[str] = field(default_factory=list)
     objects: int = 0
+    checked: bool = True  # parses and checks each object; else fingerprints only
 
     def read(self, line: bytes, mission: dict[str, Any], read_at: float) -> None:
         name, status = mission["name"], mission["status"]
@@ -100,6 +109,16 @@ class Seen:
                 states != EVERY_TRANSITION for states in progress.nodes.values()
             )
             self.fingerprint ^= zlib.crc32(name.encode()) << 32 | progress.digest
+
+    def fingerprint_only(self, line: bytes, name: bytes) -> None:
+        """`read`'s fingerprint of a mission's object without parsing it: the same, for the comparison."""
+        progress = self.active.setdefault(name, Progress())
+        progress.digest = zlib.crc32(line, progress.digest)
+        self.objects += 1
+        if COMPLETED_MARK in line:
+            del self.active[name]
+            self.completed += 1
+            self.fingerprint ^= zlib.crc32(name) << 32 | progress.digest
 
 
 def _seconds(timestamp: str) -> float:
@@ -127,7 +146,8 @@ def _histogram_summary(buckets: Counter[int]) -> dict[str, float | int | None]:
 async def _watch(
     url: str, token: str | None, framing: str, prefix: str, seen: Seen, ready: asyncio.Event
 ) -> None:
-    """One watcher: an HTTP/1.1 GET, its chunked body read as NDJSON or as server-sent events."""
+    """One watcher: an HTTP/1.1 GET, its chunked body read as NDJSON or as server-sent events; each of the
+    run's missions' objects checked (`seen.checked`) or only fingerprinted."""
     parts = urlsplit(url)
     reader, writer = await asyncio.open_connection(parts.hostname, parts.port or 80, limit=READ_LIMIT)
     auth = f"Authorization: Bearer {token}\r\n" if token else ""
@@ -143,23 +163,38 @@ async def _watch(
         pass  # the headers; the body is chunked
     if framing == NDJSON:
         ready.set()  # NDJSON has no end of snapshot: none of the run's missions exists yet
+    # An unchecked watcher finds the run's missions' objects by a regular expression over what it read (in
+    # C), not line by line: the object, and its name.
+    mission_line = re.compile(
+        rb"^(?:data: )?(\{[^\n]*" + NAME_MARK + rb"(" + re.escape(prefix.encode()) + rb'[^"]*)"[^\n]*)$', re.M
+    )
+    error_mark = b"event: error" if framing == SSE else b'{"error":'
     pending = b""
     try:
         while size := int((await reader.readline()).split(b";")[0], 16):
             pending += (await reader.readexactly(size + 2))[:-2]
-            *lines, pending = pending.split(b"\n")
-            for line in lines:
-                if framing == SSE:
-                    if line == b"event: snapshot_end":
-                        ready.set()
-                    elif line == b"event: error":
-                        seen.errors.append("error event")
-                    if not line.startswith(b'data: {"'):
+            if seen.checked:
+                *lines, pending = pending.split(b"\n")
+                for line in lines:
+                    if framing == SSE:
+                        if line == b"event: snapshot_end":
+                            ready.set()
+                        elif line == b"event: error":
+                            seen.errors.append("error event")
+                        if not line.startswith(b'data: {"'):
+                            continue
+                        line = line[6:]
+                    elif not line:
                         continue
-                    line = line[6:]
-                elif not line:
-                    continue
-                _read_object(line, prefix, seen)
+                    _read_object(line, prefix, seen)
+                continue
+            end = pending.rfind(b"\n") + 1
+            complete, pending = pending[:end], pending[end:]
+            if b"event: snapshot_end" in complete:
+                ready.set()
+            seen.errors += ["error event"] * complete.count(error_mark)
+            for match in mission_line.finditer(complete):
+                seen.fingerprint_only(match[1], match[2])
     except (ConnectionError, asyncio.IncompleteReadError, ValueError) as exc:
         seen.errors.append(f"stream ended: {exc!r}")
     finally:
@@ -183,7 +218,7 @@ def _watchers_process(args: dict[str, Any], count: int, pipe: Connection) -> Non
 
 
 async def _watchers(args: dict[str, Any], count: int, pipe: Connection) -> None:
-    seen = [Seen() for _ in range(count)]
+    seen = [Seen(checked=number < args["checked"]) for number in range(count)]
     ready = [asyncio.Event() for _ in range(count)]
     tasks = [
         asyncio.create_task(_watch(args["url"], args["token"], args["framing"], args["prefix"], mine, event))
@@ -201,8 +236,10 @@ async def _watchers(args: dict[str, Any], count: int, pipe: Connection) -> None:
 
 
 def _delivery(watchers: list[Seen]) -> dict[str, Any]:
-    """Missions completed and checked per watcher, and the watchers that read otherwise than most did."""
-    usual = Counter((seen.completed, seen.fingerprint) for seen in watchers).most_common(1)
+    """Missions completed and checked per watcher, and the watchers that read otherwise than most of the
+    checked ones did."""
+    checked = [seen for seen in watchers if seen.checked]
+    usual = Counter((seen.completed, seen.fingerprint) for seen in checked).most_common(1)
     completed, fingerprint = usual[0][0] if usual else (0, 0)
     return {
         "missions_completed": completed,
@@ -236,10 +273,13 @@ async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, An
         "prefix": options.name_prefix + "-",
     }
     counts = [len(range(i, args.watchers, args.watcher_processes)) for i in range(args.watcher_processes)]
+    checked = args.watchers if args.checked_watchers is None else min(args.checked_watchers, args.watchers)
     children = []
-    for count in counts:
+    for number, count in enumerate(counts):
+        # The checked watchers spread over the processes as the watchers are.
+        mine = {**child_args, "checked": len(range(number, checked, args.watcher_processes))}
         parent, child = SPAWN.Pipe()
-        process = SPAWN.Process(target=_watchers_process, args=(child_args, count, child), daemon=True)
+        process = SPAWN.Process(target=_watchers_process, args=(mine, count, child), daemon=True)
         process.start()
         children.append((process, parent))
     loop = asyncio.get_running_loop()
@@ -269,6 +309,7 @@ async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, An
     window = bench.window
     result["watchers"] = {
         "count": args.watchers,
+        "checked": checked,
         "framing": args.framing,
         "processes": args.watcher_processes,
         "objects_read": sum(seen.objects for seen in watchers),
@@ -289,7 +330,8 @@ def markdown(result: dict[str, Any]) -> str:
     rss = result["drift"]["rss_mb"].get("api", {})
     return "\n".join(
         [
-            f"## watchers: {watchers['count']} {watchers['framing']} watchers, {robots} robots",
+            f"## watchers: {watchers['count']} {watchers['framing']} watchers "
+            f"({watchers.get('checked', watchers['count'])} checked), {robots} robots",
             "",
             "| what | value |",
             "|---|---|",
@@ -309,6 +351,9 @@ def markdown(result: dict[str, Any]) -> str:
     )
 
 
+WATCHER_OPTIONS = {"watchers", "framing", "watcher_processes", "checked_watchers"}  # not bench.fleet's
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = fleet.build_parser()
     parser.prog = "python -m bench.watchers"
@@ -319,12 +364,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--watcher-processes", type=int, default=2, help="child processes the watchers run in"
     )
+    parser.add_argument(
+        "--checked-watchers",
+        type=int,
+        default=None,
+        help="watchers that parse and check every object (default all); the others fingerprint only",
+    )
     args = parser.parse_args(argv)
+    if args.checked_watchers is not None and args.checked_watchers < 1:
+        parser.error("--checked-watchers: at least 1 (the others are compared with the checked ones)")
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     options = fleet.options_from(
-        argparse.Namespace(
-            **{k: v for k, v in vars(args).items() if k not in {"watchers", "framing", "watcher_processes"}}
-        ),
+        argparse.Namespace(**{k: v for k, v in vars(args).items() if k not in WATCHER_OPTIONS}),
         args.robots,
     )
     result = asyncio.run(_run(options, args))

@@ -4,7 +4,11 @@ change feed (changes.models.Change).
 
 Served from an ASGI process (fleet.asgi): a watcher is a queue in the event loop, not a thread. One poller
 per process reads the feed for all its watchers: watchers of one kind with the same filters at the same
-feed position share one query and one serialization per poll, whatever their framing.
+feed position share one query and one serialization per poll, and those with the same framing too one
+framed chunk, which their queues hold as one object (hundreds of watchers of a busy fleet would otherwise
+hold hundreds of copies of each change). The process's queues are bounded twice: per watcher
+(FLEET_WATCH_QUEUE_LINES) and together (FLEET_WATCH_QUEUE_BYTES, each shared chunk counted once; past it the
+watchers furthest behind are dropped first).
 
 A watcher goes from feed position to feed position (changes.selectors reads the feed), so it has every
 committed change once; a watcher of several kinds gets one read's changes of all of them in feed order.
@@ -15,9 +19,11 @@ from __future__ import annotations
 import asyncio
 import heapq
 import logging
+from collections import defaultdict
 from collections.abc import AsyncIterator, Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from itertools import islice
 from operator import attrgetter
 
 import orjson
@@ -30,6 +36,8 @@ from changes.framing import Framing
 from changes.selectors import Span, watch_changes, watch_resume, watch_snapshot
 
 logger = logging.getLogger(__name__)
+
+LAST_IMAGES = 100_000  # objects per group of watchers whose last image is kept (LastImages)
 
 QueryFor = Callable[[], QuerySet]  # the watcher's filtered queryset, built anew for each read
 
@@ -55,29 +63,104 @@ class Item:
     data: bytes  # its JSON, as GET shows it
 
 
+@dataclass(frozen=True)
+class Framed:
+    """One read's items as the watchers that share the read and a framing get them: one chunk that every
+    such watcher's queue holds (the same object)."""
+
+    items: list[Item]
+    chunk: bytes
+
+    @classmethod
+    def of(cls, items: Iterable[Item], framing: Framing, *, since: str, position: str) -> Framed:
+        items = list(items)
+        chunk = b"".join(framing.item(item, since=since, position=position) for item in items)
+        return cls(items=items, chunk=chunk)
+
+
+class Ledger:
+    """The bytes a process's watcher queues hold, each chunk counted once however many queues hold it."""
+
+    def __init__(self) -> None:
+        self._held: dict[int, list] = {}  # id(chunk) -> [chunk, holders]; the chunk keeps its id unique
+        self.bytes = 0
+
+    def hold(self, chunk: bytes) -> None:
+        entry = self._held.get(id(chunk))
+        if entry is None:
+            self._held[id(chunk)] = [chunk, 1]
+            self.bytes += len(chunk)
+        else:
+            entry[1] += 1
+
+    def release(self, chunk: bytes) -> None:
+        entry = self._held[id(chunk)]
+        entry[1] -= 1
+        if not entry[1]:
+            del self._held[id(chunk)]
+            self.bytes -= len(chunk)
+
+
+class LastImages:
+    """The last image (hashed) of each object of one kind that watchers were sent, so that a change that
+    shows nothing new (a column the API does not show) is sent to none of them. One per group of watchers
+    (a kind and its filters), not one per watcher: hundreds of watchers of a fleet that creates missions
+    all day would otherwise each keep a digest of every mission. Past LAST_IMAGES objects the ones that
+    changed longest ago are forgotten: a change of one of those is sent even if it shows nothing new."""
+
+    def __init__(self, digests: dict[str, int] | None = None) -> None:
+        self._digests: dict[str, int] = digests or {}  # name -> hash of its JSON; least recent first
+
+    def fresh(self, items: Iterable[Item]) -> list[Item]:
+        """The items (in order) that do not repeat their object's last image; those are remembered."""
+        digests, fresh = self._digests, []
+        for item in items:
+            digest = hash(item.data)
+            if digests.pop(item.name, None) != digest:
+                fresh.append(item)
+            digests[item.name] = digest
+        self._forget()
+        return fresh
+
+    def remember(self, other: LastImages) -> None:
+        """Take in what another (a new watcher's, up to the same position) knows."""
+        self._digests.update(other._digests)
+        self._forget()
+
+    def _forget(self) -> None:
+        if len(self._digests) > LAST_IMAGES:
+            for name in list(islice(self._digests, len(self._digests) - LAST_IMAGES // 2)):
+                del self._digests[name]
+
+
+GroupKey = tuple[str, tuple]  # (kind, filters): the watchers that see the same objects
+
+
+def _group_key(watched: Watched) -> GroupKey:
+    return watched.kind, watched.filters
+
+
 @dataclass(eq=False)
 class Watcher:
     watched: tuple[Watched, ...]
     framing: Framing
     since: str  # the feed position this watcher has had every change up to
-    queue: asyncio.Queue[bytes | None] = field(default_factory=asyncio.Queue)
-    sent: dict[tuple[str, str], int] = field(default_factory=dict)  # each object's last data, hashed
+    ledger: Ledger = field(default_factory=Ledger)  # the process's (Hub.ledger): what all queues hold
+    # Chunks (None: the stream ends), each with the number of lines in it.
+    queue: asyncio.Queue[tuple[bytes | None, int]] = field(default_factory=asyncio.Queue)
+    waiting: int = 0  # lines in the queue
+    # Until its first poll (its snapshot's position is its own), the last images this watcher was sent,
+    # per kind; then None: its group's (Hub) are the same from there on.
+    own: dict[str, LastImages] | None = None
     dropped: bool = False
 
-    def deliver(self, items: Iterable[Item], position: str) -> None:
+    def deliver(self, framed: Framed, position: str) -> None:
         """Queue one read's items (the changes after `since` up to `position`); the watcher is then at
-        `position`."""
-        for item in items:
-            self.offer(item, position)
+        `position`. A watcher too far behind is told and dropped."""
         self.since = position
-
-    def offer(self, item: Item, position: str) -> None:
-        """Queue `item` unless it repeats the object's last one; a watcher too far behind is told, dropped."""
-        key, digest = (item.kind, item.name), hash(item.data)
-        if self.sent.get(key) == digest or self.dropped:
+        if self.dropped or not framed.items:
             return
-        self.sent[key] = digest
-        if self.queue.qsize() >= settings.WATCH_QUEUE_LINES:
+        if self.waiting + len(framed.items) > settings.WATCH_QUEUE_LINES:
             self.drop(
                 "watcher_behind",
                 f"More than {settings.WATCH_QUEUE_LINES} changes waited for this watcher: it is dropped. "
@@ -85,16 +168,50 @@ class Watcher:
                 resumable=False,
             )
             return
-        self.queue.put_nowait(self.framing.item(item, since=self.since, position=position))
+        self._put(framed.chunk, len(framed.items))
 
     def drop(self, error: str, detail: str, *, resumable: bool) -> None:
         """End the stream with an error in place of whatever still waits: the client watches again (SSE:
         resuming where it was if `resumable`, else with a new snapshot)."""
         self.dropped = True
+        self.close()
+        self._put(self.framing.error(error, detail, resumable=resumable), 0)
+        self.queue.put_nowait((None, 0))
+
+    def close(self) -> None:
+        """Let go of whatever waits (the stream is over)."""
         while not self.queue.empty():
-            self.queue.get_nowait()
-        self.queue.put_nowait(self.framing.error(error, detail, resumable=resumable))
-        self.queue.put_nowait(None)
+            self._took(self.queue.get_nowait())
+
+    async def take(self) -> list[bytes | None]:
+        """Whatever waits (after a wait for something, keepalives meanwhile): chunks, then None if the
+        stream ends."""
+        try:
+            entry = self.queue.get_nowait()
+        except asyncio.QueueEmpty:
+            try:
+                entry = await asyncio.wait_for(self.queue.get(), self.framing.keepalive_seconds)
+            except TimeoutError:
+                # Nothing waits: the client has had every change up to the watcher's position.
+                return [self.framing.keepalive(self.since)]
+        taken = [self._took(entry)]
+        while taken[-1] is not None and not self.queue.empty():
+            taken.append(self._took(self.queue.get_nowait()))
+        return taken
+
+    def _put(self, chunk: bytes, lines: int) -> None:
+        # Changes only: the error line that ends a dropped stream is small and one per stream.
+        if lines:
+            self.ledger.hold(chunk)
+            self.waiting += lines
+        self.queue.put_nowait((chunk, lines))
+
+    def _took(self, entry: tuple[bytes | None, int]) -> bytes | None:
+        chunk, lines = entry
+        if lines:
+            self.ledger.release(chunk)
+            self.waiting -= lines
+        return chunk
 
 
 @dataclass(frozen=True)
@@ -106,6 +223,13 @@ class Opening:
     items: list[Item]
     since: str | None = None
     notice: tuple[str, str] | None = None  # an error the client is told first, (error, detail)
+
+    def last_images(self) -> dict[str, LastImages]:
+        """Per kind, the images it sends: what the watcher's first read is judged by."""
+        kinds: dict[str, dict[str, int]] = {}
+        for item in self.items:
+            kinds.setdefault(item.kind, {})[item.name] = hash(item.data)
+        return defaultdict(LastImages, {kind: LastImages(digests) for kind, digests in kinds.items()})
 
 
 def snapshot(reads: list[tuple[Watched, QuerySet]]) -> Opening:
@@ -158,6 +282,8 @@ class Hub:
 
     def __init__(self) -> None:
         self.watchers: set[Watcher] = set()
+        self.ledger = Ledger()
+        self._groups: dict[GroupKey, LastImages] = {}  # those of the watchers' groups
         self._task: asyncio.Task[None] | None = None
         # One thread, one database connection: the poller's reads never wait for a request's thread.
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="watch-poller")
@@ -169,6 +295,7 @@ class Hub:
 
     def remove(self, watcher: Watcher) -> None:
         self.watchers.discard(watcher)
+        watcher.close()
 
     async def _poll_forever(self) -> None:
         loop = asyncio.get_running_loop()
@@ -201,10 +328,58 @@ class Hub:
                     )
                 self.watchers.clear()
                 return
-            items = dict(zip(keys, changes, strict=True))
-            for watcher in watchers:
-                kinds = [items[_read_key(watched, watcher.since)] for watched in watcher.watched]
-                watcher.deliver(_in_feed_order(kinds), position)
+            self.deliver(watchers, dict(zip(keys, changes, strict=True)), position)
+
+    def deliver(self, watchers: list[Watcher], items: dict[ReadKey, list[Item]], position: str) -> None:
+        """One poll's items to each watcher, framed once per (reads, framing); then, past
+        FLEET_WATCH_QUEUE_BYTES held in all, the watchers furthest behind are dropped until it is not.
+
+        The watchers past their first poll are all at the same position: their groups' last images
+        judge what is new to them. A new watcher's own (from its snapshot) judge its first read; the
+        group takes them in after, when they are at the same position: first the others', so that
+        these do not judge the others' read by images of its end."""
+        framed: dict[tuple, Framed] = {}
+        fresh: dict[ReadKey, list[Item]] = {}
+        in_use = {
+            _group_key(watched) for watcher in (*self.watchers, *watchers) for watched in watcher.watched
+        }
+        self._groups = {key: self._groups.get(key) or LastImages() for key in in_use}
+        joined = [watcher for watcher in watchers if watcher.own is None]
+        for watcher in joined:
+            read_keys = tuple(_read_key(watched, watcher.since) for watched in watcher.watched)
+            shared = (read_keys, type(watcher.framing))
+            if shared not in framed:
+                for key in read_keys:
+                    if key not in fresh:
+                        fresh[key] = self._groups[key[:2]].fresh(items[key])
+                kinds = [fresh[key] for key in read_keys]
+                framed[shared] = Framed.of(
+                    _in_feed_order(kinds), watcher.framing, since=watcher.since, position=position
+                )
+            watcher.deliver(framed[shared], position)
+        for watcher in watchers:
+            if watcher.own is None:
+                continue
+            own, watcher.own = watcher.own, None
+            kinds = [
+                own[watched.kind].fresh(items[_read_key(watched, watcher.since)])
+                for watched in watcher.watched
+            ]
+            watcher.deliver(
+                Framed.of(_in_feed_order(kinds), watcher.framing, since=watcher.since, position=position),
+                position,
+            )
+            for watched in watcher.watched:
+                self._groups[_group_key(watched)].remember(own[watched.kind])
+        behind = sorted((watcher for watcher in watchers if watcher.waiting), key=attrgetter("waiting"))
+        while self.ledger.bytes > settings.WATCH_QUEUE_BYTES and behind:
+            behind.pop().drop(
+                "watcher_behind",
+                f"This server's watchers had more than {settings.WATCH_QUEUE_BYTES} bytes of changes "
+                "waiting and this one was among those furthest behind: it is dropped. "
+                "Watch again for a new snapshot.",
+                resumable=False,
+            )
 
 
 HUB = Hub()
@@ -215,8 +390,9 @@ async def watch_stream(
 ) -> AsyncIterator[bytes]:
     """The opening's items, then each change's, until the client goes or falls too far behind;
     keepalives while there is nothing to send."""
-    watcher = Watcher(watched=watched, framing=framing, since=opening.position)
-    watcher.sent.update(((item.kind, item.name), hash(item.data)) for item in opening.items)
+    watcher = Watcher(
+        watched=watched, framing=framing, since=opening.position, ledger=HUB.ledger, own=opening.last_images()
+    )
     HUB.add(watcher)
     try:
         # The response's headers go out now, not with the first item, which may be a long while.
@@ -228,25 +404,12 @@ async def watch_stream(
             opened.append(framing.snapshot_end(opening.position))
         yield b"".join(opened)
         while True:
-            try:
-                chunk = watcher.queue.get_nowait()
-            except asyncio.QueueEmpty:
-                try:
-                    chunk = await asyncio.wait_for(watcher.queue.get(), framing.keepalive_seconds)
-                except TimeoutError:
-                    # Nothing waits: the client has had every change up to the watcher's position.
-                    yield framing.keepalive(watcher.since)
-                    continue
-            # Whatever else waits goes out in the same write.
-            chunks = []
-            while chunk is not None:
-                chunks.append(chunk)
-                if watcher.queue.empty():
-                    break
-                chunk = watcher.queue.get_nowait()
+            taken = await watcher.take()
+            # Whatever waited goes out in one write.
+            chunks = [chunk for chunk in taken if chunk is not None]
             if chunks:
-                yield b"".join(chunks)
-            if chunk is None:
+                yield chunks[0] if len(chunks) == 1 else b"".join(chunks)
+            if taken[-1] is None:
                 return
     finally:
         HUB.remove(watcher)

@@ -198,6 +198,9 @@ SPECTACULAR_SETTINGS = {
 WATCH_POLL_SECONDS = env_float("FLEET_WATCH_POLL_SECONDS", 0.2)
 # Lines that may wait for one watcher (a client that reads too slowly): one more and it is told and dropped.
 WATCH_QUEUE_LINES = env_int("FLEET_WATCH_QUEUE_LINES", 10_000)
+# Bytes that may wait for all of a process's watchers together, a change shared by several counted once:
+# past it the watchers furthest behind are told and dropped first.
+WATCH_QUEUE_BYTES = env_int("FLEET_WATCH_QUEUE_BYTES", 256 * 2**20)
 # How long the change feed keeps a change (beat trims older ones every FLEET_CHANGE_TRIM_SECONDS).
 CHANGE_RETENTION_SECONDS = env_float("FLEET_CHANGE_RETENTION_SECONDS", 600.0)
 CHANGE_TRIM_SECONDS = env_float("FLEET_CHANGE_TRIM_SECONDS", 60.0)

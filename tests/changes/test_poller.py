@@ -20,9 +20,7 @@ async def _stream_of_a_watcher_whose_poll_fails(framing: Framing) -> list[bytes 
     watched = Watched(kind="robot", query=_query_that_fails, filters=(), serializer=RobotSerializer)
     watcher = Watcher(watched=(watched,), framing=framing, since="1:1:")
     hub.add(watcher)
-    lines = [await asyncio.wait_for(watcher.queue.get(), timeout=10)]
-    lines.append(await asyncio.wait_for(watcher.queue.get(), timeout=10))
-    return lines
+    return await asyncio.wait_for(watcher.take(), timeout=10)
 
 
 def test_a_poll_that_fails_ends_the_streams_with_an_error_line() -> None:
