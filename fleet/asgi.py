@@ -8,7 +8,8 @@ WSGI), but not on the same threads:
   and at most that many requests run at once (the others wait their turn in the event loop).
 - A stream's request (its authentication, validation and snapshot) runs on a thread of its own, closed
   with its database connection when the stream ends; the stream itself is a coroutine (changes.stream),
-  so hundreds of open streams take none of the REST threads.
+  so hundreds of open streams take none of the REST threads. At most FLEET_STREAM_OPENINGS streams' requests
+  run at once, so watchers that all connect at once do not take every database connection there is.
 """
 
 import asyncio
@@ -78,7 +79,7 @@ REQUEST_THREADS = RequestThreads(settings.API_THREADS)
 async def application(scope: Scope, receive: Receive, send: Any) -> None:
     receive = _bounded(receive)
     if scope["type"] == "http" and scope["path"] in STREAM_PATHS:
-        await _stream(scope, receive, send)
+        await STREAM_OPENINGS.run(scope, receive, send)
         return
     async with REQUEST_THREADS.lend() as thread, ThreadSensitiveContext(executor=thread):
         await django_application(scope, receive, send)
@@ -106,6 +107,38 @@ def _bounded(receive: Receive) -> Receive:
         return message
 
     return bounded
+
+
+class StreamOpenings:
+    """FLEET_STREAM_OPENINGS streams' requests at a time: a stream's turn ends when its stream starts (its
+    view let go of its database connection after the snapshot) or, for a request refused, when its
+    connection is closed."""
+
+    def __init__(self, count: int) -> None:
+        self._turns = asyncio.Semaphore(count)  # bound to the server's event loop at its first wait
+
+    async def run(self, scope: Scope, receive: Receive, send: Any) -> None:
+        await self._turns.acquire()
+        turn = True
+
+        def end_turn() -> None:
+            nonlocal turn
+            if turn:
+                turn = False
+                self._turns.release()
+
+        async def sending(message: Message) -> None:
+            if message["type"] == "http.response.start" and message["status"] == 200:
+                end_turn()
+            await send(message)
+
+        try:
+            await _stream(scope, receive, sending)
+        finally:
+            end_turn()
+
+
+STREAM_OPENINGS = StreamOpenings(settings.STREAM_OPENINGS)
 
 
 async def _stream(scope: Scope, receive: Any, send: Any) -> None:

@@ -147,6 +147,10 @@ API_AUTH = env_bool("FLEET_API_AUTH", True)
 # REST requests an API process (fleet.asgi) runs at once, each on a thread of its own that keeps its
 # database connection; more wait their turn. Open streams are not counted: they take no thread.
 API_THREADS = env_int("FLEET_API_THREADS", 4)
+# Streams an API process opens at once (each stream's request: its authentication, filters and snapshot,
+# on a database connection let go before the stream's changes flow); more wait their turn. Without a bound,
+# hundreds of watchers that connect at once (a restart) would take more connections than PostgreSQL has.
+STREAM_OPENINGS = env_int("FLEET_STREAM_OPENINGS", 4)
 
 REST_FRAMEWORK = {
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
