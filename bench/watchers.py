@@ -3,11 +3,14 @@ of the missions open meanwhile, on GET /events (server-sent events) or GET /miss
 
 What it reports (bench/README.md, "Watchers"):
 - delivery: every watcher must have had every transition of every mission the run completed (PENDING,
-  RUNNING, COMPLETED, and each route node's), and each mission's sequence of objects must be the same on
-  every watcher; missions short of that are counted per watcher, as are dropped watchers and error events.
-  With `--checked-watchers K`, K watchers parse every object and check its transitions; the others only
-  fingerprint each mission's objects (bytes, no parsing), which must match the checked ones': so hundreds
-  of watchers can be read on the server's own machine;
+  RUNNING, COMPLETED, and each route node's), and the same objects in the same order as every other:
+  `--checked-watchers K` watchers parse every object and check each mission's transitions; every watcher
+  digests its stream from the run's first mission to an end-of-run mission posted after the fleet's run
+  (crc32 of the bytes with the SSE ids and keepalives taken out: those name each API process's own feed
+  positions), and the digests must all be the checked watchers'. Digesting is C code per read, no parsing,
+  so hundreds of watchers can be read on the server's own machine; dropped watchers and error events are
+  counted;
+- drain: how long after the end-of-run mission was posted every watcher had it;
 - delivery latency: from the server's own time of a transition (a mission's start_timestamp for RUNNING,
   end_timestamp for COMPLETED) to the watcher's reading of it, p50/p99/max over the checked watchers;
 - REST latency meanwhile: GET /robot?names=... (10 robots) every PROBE_SECONDS, in the run's window;
@@ -47,7 +50,6 @@ logger = logging.getLogger("bench")
 
 SSE, NDJSON = "sse", "ndjson"
 CONNECT_TIMEOUT = 60.0  # s for every watcher's snapshot
-TAIL_SECONDS = 3.0  # s the watchers keep reading after the fleet's run: the last transitions' delivery
 PROBE_SECONDS = 0.5
 READ_LIMIT = 2**24  # bytes of one line (a snapshot's mission can be large)
 # Children start afresh (not forked from a process with a running event loop and MQTT threads).
@@ -56,17 +58,21 @@ SPAWN = multiprocessing.get_context("spawn")
 
 STATE_LETTERS = {"PENDING": "P", "RUNNING": "R", "COMPLETED": "C", "FAILED": "F", "CANCELED": "X"}
 EVERY_TRANSITION = "PRC"  # PENDING, RUNNING, COMPLETED: of a completed mission and of each of its nodes
-# A mission's JSON as GET shows it (missions.api.serializers): its name after the tree's nodes' names, then
-# its status, state first.
+# A mission's JSON as GET shows it (missions.api.serializers): its name comes after the tree's nodes' names.
 NAME_MARK = b',"name":"'
-COMPLETED_MARK = b'"status":{"state":"COMPLETED"'
+END_OF_RUN = "end-of-run"  # the name (after the run's prefix) of the mission posted after the fleet's run
+DRAIN_TIMEOUT = 120.0  # s for every watcher to read the end-of-run mission
+# What differs between watchers that read the same: SSE ids (each API process's own feed positions; "id: "
+# is found only at a line's start, JSON has no space after a colon) and keepalives (each watcher's own quiet
+# moments: a keepalive is a write, so a chunk, of its own).
+SSE_ID = re.compile(rb"id: [^\n]*\n")
+KEEPALIVE = b": keepalive"
 
 
 @dataclass
 class Progress:
     """A mission a watcher has seen and that has not completed yet: what it must check then."""
 
-    digest: int = 0  # crc32 over its objects, in the order read
     states: str = ""  # its distinct states in order, one letter each (STATE_LETTERS)
     nodes: dict[str, str] = field(default_factory=dict)  # the same for each node
     last_state: str | None = None
@@ -75,22 +81,24 @@ class Progress:
 @dataclass
 class Seen:
     """What one watcher read of the run's missions, in constant memory per mission it completed (hundreds
-    of watchers over thousands of missions): a check per mission when it completes, and a fingerprint of
-    all completed missions' objects, the same on every watcher that read the same."""
+    of watchers over thousands of missions): if `checked`, a check per mission when it completes; and a
+    digest of its stream from the run's first mission to the end-of-run one."""
 
+    checked: bool = True
     active: dict[str, Progress] = field(default_factory=dict)
     completed: int = 0
     incomplete: int = 0  # completed missions of which a transition was not read
-    fingerprint: int = 0  # xor over completed missions of crc32(name) << 32 | their objects' crc32
     latency_ms: Counter[int] = field(default_factory=Counter)  # transition -> read, 1-ms buckets
     errors: list[str] = field(default_factory=list)
     objects: int = 0
-    checked: bool = True  # parses and checks each object; else fingerprints only
+    digest: int = 0  # crc32 of the stream from the run's first mission to the end-of-run one
+    digested: int = 0  # bytes of it
+    started: bool = False  # the run's first mission read
+    ended: bool = False  # the end-of-run mission read
 
-    def read(self, line: bytes, mission: dict[str, Any], read_at: float) -> None:
+    def read(self, mission: dict[str, Any], read_at: float) -> None:
         name, status = mission["name"], mission["status"]
         progress = self.active.setdefault(name, Progress())
-        progress.digest = zlib.crc32(line, progress.digest)
         state = status["state"]
         if state != progress.last_state:
             progress.states += STATE_LETTERS.get(state, "?")
@@ -108,17 +116,25 @@ class Seen:
             self.incomplete += progress.states != EVERY_TRANSITION or any(
                 states != EVERY_TRANSITION for states in progress.nodes.values()
             )
-            self.fingerprint ^= zlib.crc32(name.encode()) << 32 | progress.digest
 
-    def fingerprint_only(self, line: bytes, name: bytes) -> None:
-        """`read`'s fingerprint of a mission's object without parsing it: the same, for the comparison."""
-        progress = self.active.setdefault(name, Progress())
-        progress.digest = zlib.crc32(line, progress.digest)
-        self.objects += 1
-        if COMPLETED_MARK in line:
-            del self.active[name]
-            self.completed += 1
-            self.fingerprint ^= zlib.crc32(name) << 32 | progress.digest
+    def digest_span(self, body: bytes, *, first: bytes, last: bytes, separator: bytes) -> None:
+        """Digest what of `body` (whole objects, ids taken out) lies from the object that names `first`
+        to the one that names `last`, those included."""
+        if self.ended:
+            return
+        if not self.started:
+            at = body.find(first)
+            if at < 0:
+                return
+            start = body.rfind(separator, 0, at)
+            body = body[start + len(separator) :] if start >= 0 else body
+            self.started = True
+        at = body.find(last)
+        if at >= 0:
+            body = body[: body.index(separator, at) + len(separator)]
+            self.ended = True
+        self.digest = zlib.crc32(body, self.digest)
+        self.digested += len(body)
 
 
 def _seconds(timestamp: str) -> float:
@@ -146,8 +162,8 @@ def _histogram_summary(buckets: Counter[int]) -> dict[str, float | int | None]:
 async def _watch(
     url: str, token: str | None, framing: str, prefix: str, seen: Seen, ready: asyncio.Event
 ) -> None:
-    """One watcher: an HTTP/1.1 GET, its chunked body read as NDJSON or as server-sent events; each of the
-    run's missions' objects checked (`seen.checked`) or only fingerprinted."""
+    """One watcher: an HTTP/1.1 GET, its chunked body read as NDJSON or as server-sent events, until the
+    end-of-run mission."""
     parts = urlsplit(url)
     reader, writer = await asyncio.open_connection(parts.hostname, parts.port or 80, limit=READ_LIMIT)
     auth = f"Authorization: Bearer {token}\r\n" if token else ""
@@ -163,38 +179,27 @@ async def _watch(
         pass  # the headers; the body is chunked
     if framing == NDJSON:
         ready.set()  # NDJSON has no end of snapshot: none of the run's missions exists yet
-    # An unchecked watcher finds the run's missions' objects by a regular expression over what it read (in
-    # C), not line by line: the object, and its name.
-    mission_line = re.compile(
-        rb"^(?:data: )?(\{[^\n]*" + NAME_MARK + rb"(" + re.escape(prefix.encode()) + rb'[^"]*)"[^\n]*)$', re.M
-    )
-    error_mark = b"event: error" if framing == SSE else b'{"error":'
+    separator, error_mark = (b"\n\n", b"event: error") if framing == SSE else (b"\n", b'{"error":')
+    first, last = NAME_MARK + prefix.encode(), NAME_MARK + (prefix + END_OF_RUN).encode()
     pending = b""
     try:
-        while size := int((await reader.readline()).split(b";")[0], 16):
-            pending += (await reader.readexactly(size + 2))[:-2]
-            if seen.checked:
-                *lines, pending = pending.split(b"\n")
-                for line in lines:
-                    if framing == SSE:
-                        if line == b"event: snapshot_end":
-                            ready.set()
-                        elif line == b"event: error":
-                            seen.errors.append("error event")
-                        if not line.startswith(b'data: {"'):
-                            continue
-                        line = line[6:]
-                    elif not line:
-                        continue
-                    _read_object(line, prefix, seen)
+        while not seen.ended and (size := int((await reader.readline()).split(b";")[0], 16)):
+            chunk = (await reader.readexactly(size + 2))[:-2]
+            if framing == SSE and chunk.startswith(KEEPALIVE):
                 continue
-            end = pending.rfind(b"\n") + 1
+            pending += chunk
+            end = pending.rfind(separator) + len(separator)
+            if end < len(separator):
+                continue
             complete, pending = pending[:end], pending[end:]
-            if b"event: snapshot_end" in complete:
-                ready.set()
+            if framing == SSE:
+                if not ready.is_set() and b"event: snapshot_end" in complete:
+                    ready.set()
+                complete = SSE_ID.sub(b"", complete)
             seen.errors += ["error event"] * complete.count(error_mark)
-            for match in mission_line.finditer(complete):
-                seen.fingerprint_only(match[1], match[2])
+            if seen.checked:
+                _read_objects(complete, framing, prefix, seen)
+            seen.digest_span(complete, first=first, last=last, separator=separator)
     except (ConnectionError, asyncio.IncompleteReadError, ValueError) as exc:
         seen.errors.append(f"stream ended: {exc!r}")
     finally:
@@ -202,14 +207,20 @@ async def _watch(
         writer.close()
 
 
-def _read_object(line: bytes, prefix: str, seen: Seen) -> None:
+def _read_objects(body: bytes, framing: str, prefix: str, seen: Seen) -> None:
+    """Check the run's missions' objects in `body` (whole objects, SSE ids taken out)."""
     read_at = time.time()
-    mission = orjson.loads(line)
-    if "error" in mission:
-        seen.errors.append(mission["error"])
-    elif mission["name"].startswith(prefix):
-        seen.objects += 1
-        seen.read(line, mission, read_at)
+    for line in body.split(b"\n"):
+        if framing == SSE:
+            if not line.startswith(b'data: {"'):
+                continue
+            line = line[6:]
+        elif not line:
+            continue
+        mission = orjson.loads(line)
+        if "name" in mission and mission["name"].startswith(prefix):
+            seen.objects += 1
+            seen.read(mission, read_at)
 
 
 def _watchers_process(args: dict[str, Any], count: int, pipe: Connection) -> None:
@@ -226,7 +237,13 @@ async def _watchers(args: dict[str, Any], count: int, pipe: Connection) -> None:
     ]
     await asyncio.wait_for(asyncio.gather(*(event.wait() for event in ready)), CONNECT_TIMEOUT)
     pipe.send("ready")
-    await asyncio.get_running_loop().run_in_executor(None, pipe.recv)  # "stop"
+    # Until every watcher read the end-of-run mission (or its stream ended), or the parent stops waiting.
+    stop = asyncio.get_running_loop().run_in_executor(None, pipe.recv)
+    await asyncio.wait(
+        [stop, asyncio.gather(*tasks, return_exceptions=True)], return_when=asyncio.FIRST_COMPLETED
+    )
+    pipe.send("ended")
+    await stop  # "stop"
     for task in tasks:
         task.cancel()
     await asyncio.gather(*tasks, return_exceptions=True)
@@ -236,16 +253,17 @@ async def _watchers(args: dict[str, Any], count: int, pipe: Connection) -> None:
 
 
 def _delivery(watchers: list[Seen]) -> dict[str, Any]:
-    """Missions completed and checked per watcher, and the watchers that read otherwise than most of the
-    checked ones did."""
+    """Missions completed and checked, and the watchers whose stream's digest is not the checked ones'."""
     checked = [seen for seen in watchers if seen.checked]
-    usual = Counter((seen.completed, seen.fingerprint) for seen in checked).most_common(1)
-    completed, fingerprint = usual[0][0] if usual else (0, 0)
+    usual = Counter((seen.digest, seen.digested) for seen in checked if seen.ended).most_common(1)
+    digest = usual[0][0] if usual else None
     return {
-        "missions_completed": completed,
-        "missions_without_every_transition": sum(seen.incomplete for seen in watchers),
+        "missions_completed": max((seen.completed for seen in checked), default=0),
+        "missions_without_every_transition": sum(seen.incomplete for seen in checked),
+        "watchers_to_the_end": sum(seen.ended for seen in watchers),
+        "bytes_digested": digest[1] if digest else 0,
         "watchers_that_read_otherwise": sum(
-            (seen.completed, seen.fingerprint) != (completed, fingerprint) for seen in watchers
+            not seen.ended or (seen.digest, seen.digested) != digest for seen in watchers
         ),
     }
 
@@ -265,7 +283,12 @@ async def _probe(
 
 
 async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, Any]:
-    path = "/events?kind=mission" if args.framing == SSE else "/mission/watch"
+    # A short snapshot (the database may hold the missions of earlier runs): what is measured are the changes.
+    path = (
+        "/events?kind=mission&mission.most_recent=1"
+        if args.framing == SSE
+        else "/mission/watch?most_recent=1"
+    )
     child_args = {
         "url": options.base_url.rstrip("/") + path,
         "token": options.api_token,
@@ -299,12 +322,25 @@ async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, An
     finally:
         stop.set()
         await probe
-        probe_api.close()
-    await asyncio.sleep(TAIL_SECONDS)
+    end_of_run = child_args["prefix"] + END_OF_RUN
+    tree = [{"name": "wait", "route": {"waypoints": [{"x": 0, "y": 0}]}}]
+    posted = time.monotonic()
+    await probe_api.post_mission({"robot": end_of_run, "name": end_of_run, "mission_tree": tree})
+    probe_api.close()
+    drained: float | None = None  # s until every child's watchers read the end-of-run mission
+    for _, pipe in children:
+        left = max(0.0, posted + DRAIN_TIMEOUT - time.monotonic())
+        if not await loop.run_in_executor(None, pipe.poll, left):
+            break
+        pipe.recv()  # "ended"
+    else:
+        drained = time.monotonic() - posted
     watchers: list[Seen] = []
     for process, pipe in children:
         pipe.send("stop")
-        watchers += [Seen(**fields) for fields in await loop.run_in_executor(None, pipe.recv)]
+        while (answer := await loop.run_in_executor(None, pipe.recv)) == "ended":
+            pass
+        watchers += [Seen(**fields) for fields in answer]
         process.join(timeout=30)
     window = bench.window
     result["watchers"] = {
@@ -314,6 +350,7 @@ async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, An
         "processes": args.watcher_processes,
         "objects_read": sum(seen.objects for seen in watchers),
         "delivery": _delivery(watchers),
+        "drain_seconds": None if drained is None else round(drained, 2),
         "delivery_latency_ms": _histogram_summary(sum((seen.latency_ms for seen in watchers), Counter())),
         "errors": sum(len(seen.errors) for seen in watchers),
         "error_samples": [error for seen in watchers for error in seen.errors][: fleet.MAX_LOGGED_ERRORS],
@@ -337,7 +374,11 @@ def markdown(result: dict[str, Any]) -> str:
             "|---|---|",
             f"| missions completed | {delivery['missions_completed']} |",
             f"| missions without every transition | {delivery['missions_without_every_transition']} |",
-            f"| watchers that read otherwise than most | {delivery['watchers_that_read_otherwise']} |",
+            "| watchers that read otherwise than the checked ones | "
+            f"{delivery['watchers_that_read_otherwise']} "
+            "|",
+            f"| watchers that read to the end of the run | {delivery['watchers_to_the_end']} |",
+            f"| every watcher at the end of the run after (s) | {watchers['drain_seconds']} |",
             f"| errors (dropped, failed) | {watchers['errors']} |",
             f"| delivery latency p50 / p99 / max ms | {latency['p50']} / {latency['p99']} / {latency['max']} "
             "|",
@@ -368,7 +409,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--checked-watchers",
         type=int,
         default=None,
-        help="watchers that parse and check every object (default all); the others fingerprint only",
+        help="watchers that parse and check every object (default all); the others digest their stream only",
     )
     args = parser.parse_args(argv)
     if args.checked_watchers is not None and args.checked_watchers < 1:

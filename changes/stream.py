@@ -8,7 +8,8 @@ feed position share one query and one serialization per poll, and those with the
 framed chunk, which their queues hold as one object (hundreds of watchers of a busy fleet would otherwise
 hold hundreds of copies of each change). The process's queues are bounded twice: per watcher
 (FLEET_WATCH_QUEUE_LINES) and together (FLEET_WATCH_QUEUE_BYTES, each shared chunk counted once; past it the
-watchers furthest behind are dropped first).
+watchers furthest behind are dropped first); what a stream has written and its client not read yet, by
+the size of a write (WRITE_BYTES).
 
 A watcher goes from feed position to feed position (changes.selectors reads the feed), so it has every
 committed change once; a watcher of several kinds gets one read's changes of all of them in feed order.
@@ -19,7 +20,7 @@ from __future__ import annotations
 import asyncio
 import heapq
 import logging
-from collections import defaultdict
+from collections import defaultdict, deque
 from collections.abc import AsyncIterator, Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -38,6 +39,9 @@ from changes.selectors import Span, watch_changes, watch_resume, watch_snapshot
 logger = logging.getLogger(__name__)
 
 LAST_IMAGES = 100_000  # objects per group of watchers whose last image is kept (LastImages)
+# Bytes a stream writes at once at most (whole items; one larger item alone): the HTTP server holds up to
+# 32 writes per stream that its client has not read yet (granian's channel), so this bounds that too.
+WRITE_BYTES = 64 * 1024
 
 QueryFor = Callable[[], QuerySet]  # the watcher's filtered queryset, built anew for each read
 
@@ -65,17 +69,28 @@ class Item:
 
 @dataclass(frozen=True)
 class Framed:
-    """One read's items as the watchers that share the read and a framing get them: one chunk that every
-    such watcher's queue holds (the same object)."""
+    """One read's items as the watchers that share the read and a framing get them: framed once, in pieces
+    of at most WRITE_BYTES (whole items) that every such watcher's queue holds (the same objects)."""
 
     items: list[Item]
-    chunk: bytes
+    pieces: list[tuple[bytes, int]]  # (bytes, items in them)
 
     @classmethod
     def of(cls, items: Iterable[Item], framing: Framing, *, since: str, position: str) -> Framed:
         items = list(items)
-        chunk = b"".join(framing.item(item, since=since, position=position) for item in items)
-        return cls(items=items, chunk=chunk)
+        pieces: list[tuple[bytes, int]] = []
+        lines: list[bytes] = []
+        size = 0
+        for item in items:
+            line = framing.item(item, since=since, position=position)
+            if lines and size + len(line) > WRITE_BYTES:
+                pieces.append((b"".join(lines), len(lines)))
+                lines, size = [], 0
+            lines.append(line)
+            size += len(line)
+        if lines:
+            pieces.append((b"".join(lines), len(lines)))
+        return cls(items=items, pieces=pieces)
 
 
 class Ledger:
@@ -147,8 +162,9 @@ class Watcher:
     since: str  # the feed position this watcher has had every change up to
     ledger: Ledger = field(default_factory=Ledger)  # the process's (Hub.ledger): what all queues hold
     # Chunks (None: the stream ends), each with the number of lines in it.
-    queue: asyncio.Queue[tuple[bytes | None, int]] = field(default_factory=asyncio.Queue)
+    queue: deque[tuple[bytes | None, int]] = field(default_factory=deque)
     waiting: int = 0  # lines in the queue
+    arrived: asyncio.Event = field(default_factory=asyncio.Event)
     # Until its first poll (its snapshot's position is its own), the last images this watcher was sent,
     # per kind; then None: its group's (Hub) are the same from there on.
     own: dict[str, LastImages] | None = None
@@ -168,7 +184,8 @@ class Watcher:
                 resumable=False,
             )
             return
-        self._put(framed.chunk, len(framed.items))
+        for piece, lines in framed.pieces:
+            self._put(piece, lines)
 
     def drop(self, error: str, detail: str, *, resumable: bool) -> None:
         """End the stream with an error in place of whatever still waits: the client watches again (SSE:
@@ -176,35 +193,42 @@ class Watcher:
         self.dropped = True
         self.close()
         self._put(self.framing.error(error, detail, resumable=resumable), 0)
-        self.queue.put_nowait((None, 0))
+        self._put(None, 0)
 
     def close(self) -> None:
         """Let go of whatever waits (the stream is over)."""
-        while not self.queue.empty():
-            self._took(self.queue.get_nowait())
+        while self.queue:
+            self._took(self.queue.popleft())
 
     async def take(self) -> list[bytes | None]:
-        """Whatever waits (after a wait for something, keepalives meanwhile): chunks, then None if the
-        stream ends."""
-        try:
-            entry = self.queue.get_nowait()
-        except asyncio.QueueEmpty:
+        """What waits, up to WRITE_BYTES (after a wait for something, keepalives meanwhile): chunks, then
+        None if the stream ends."""
+        if not self.queue:
+            self.arrived.clear()
             try:
-                entry = await asyncio.wait_for(self.queue.get(), self.framing.keepalive_seconds)
+                await asyncio.wait_for(self.arrived.wait(), self.framing.keepalive_seconds)
             except TimeoutError:
                 # Nothing waits: the client has had every change up to the watcher's position.
                 return [self.framing.keepalive(self.since)]
-        taken = [self._took(entry)]
-        while taken[-1] is not None and not self.queue.empty():
-            taken.append(self._took(self.queue.get_nowait()))
+        taken: list[bytes | None] = []
+        size = 0
+        while self.queue:
+            chunk = self.queue[0][0]
+            if chunk is not None and taken and size + len(chunk) > WRITE_BYTES:
+                break
+            taken.append(self._took(self.queue.popleft()))
+            if chunk is None:
+                break
+            size += len(chunk)
         return taken
 
-    def _put(self, chunk: bytes, lines: int) -> None:
+    def _put(self, chunk: bytes | None, lines: int) -> None:
         # Changes only: the error line that ends a dropped stream is small and one per stream.
         if lines:
             self.ledger.hold(chunk)
             self.waiting += lines
-        self.queue.put_nowait((chunk, lines))
+        self.queue.append((chunk, lines))
+        self.arrived.set()
 
     def _took(self, entry: tuple[bytes | None, int]) -> bytes | None:
         chunk, lines = entry

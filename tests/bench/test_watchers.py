@@ -54,6 +54,9 @@ def test_a_short_run_delivers_every_transition_to_every_watcher(
     delivery = watchers["delivery"]
     assert delivery["missions_completed"] >= result["missions"]["completed_in_window"] > 0
     assert delivery["missions_without_every_transition"] == 0
+    # Every watcher read from the run's first mission to the end-of-run one the same bytes as the checked one.
+    assert delivery["watchers_to_the_end"] == 3 and watchers["drain_seconds"] is not None
+    assert delivery["bytes_digested"] > 500 * delivery["missions_completed"]
     assert delivery["watchers_that_read_otherwise"] == 0
     assert watchers["errors"] == 0, watchers["error_samples"]
     # RUNNING and COMPLETED of each completed mission, on the checked watcher (and of missions cut short).

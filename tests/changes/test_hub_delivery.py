@@ -1,6 +1,7 @@
 """How a process's poller hands one poll's changes to its watchers (changes.stream.Hub.deliver): framed once
-for the watchers that share a read and a framing, their queues holding the one chunk; the bytes of all
-queues bounded together, the watchers furthest behind dropped first. No database: the items are given."""
+for the watchers that share a read and a framing, their queues holding the one chunk; writes of bounded
+size; the bytes of all queues bounded together, the watchers furthest behind dropped first. No database:
+the items are given."""
 
 import asyncio
 
@@ -45,7 +46,7 @@ def test_watchers_that_share_a_read_and_a_framing_hold_one_chunk() -> None:
 
     _poll(hub, ndjson + sse, {watched: items}, POSITION)
 
-    chunks = [watcher.queue.get_nowait()[0] for watcher in ndjson + sse]
+    chunks = [watcher.queue[0][0] for watcher in ndjson + sse]
     assert chunks[0] == items[0].data + b"\n" + items[1].data + b"\n"
     assert chunks[0] is chunks[1] is chunks[2]
     assert chunks[3] is chunks[4] and chunks[3] is not chunks[0]
@@ -115,7 +116,7 @@ def test_a_new_watcher_is_judged_by_its_snapshot_and_then_joins_the_others() -> 
     # From here on both are at one position and share: r1 again at 51 is nothing new to either.
     _poll(hub, [old, new], {watched: [_item(14, "r1", 51), _item(15, "r2", 2)]}, "15:15:")
     assert _taken(old) == _taken(new) == [_item(15, "r2", 2).data + b"\n"]
-    assert old.queue.empty() and new.queue.empty()
+    assert not old.queue and not new.queue
 
 
 def test_the_last_images_kept_are_bounded(monkeypatch) -> None:
@@ -129,6 +130,28 @@ def test_the_last_images_kept_are_bounded(monkeypatch) -> None:
     _poll(hub, [watcher], {watched: [_item(12, "r01", 50), _item(13, "r11", 50)]}, "2:2:")
 
     assert _taken(watcher) == [_item(12, "r01", 50).data + b"\n"]
+
+
+def test_a_stream_writes_at_most_write_bytes_at_once(monkeypatch) -> None:
+    line = len(_item(0, "r10", 10).data) + 1  # every name and battery level here has two digits
+    monkeypatch.setattr("changes.stream.WRITE_BYTES", 3 * line)
+    hub, watched = Hub(), _watched()
+    first, second = _watcher(hub, watched), _watcher(hub, watched)
+    items = [_item(number, f"r{number}", 10 + number) for number in range(10, 18)]  # 8 lines
+
+    _poll(hub, [first, second], {watched: items}, POSITION)
+
+    # Pieces of whole lines, shared by the two queues.
+    assert [lines for _, lines in first.queue] == [3, 3, 2]
+    assert all(a[0] is b[0] for a, b in zip(first.queue, second.queue, strict=True))
+    _poll(hub, [first, second], {watched: [_item(18, "r18", 28)]}, "20:20:")
+    writes = [_taken(first) for _ in range(3)]
+    # A write takes whole pieces while they fit: the last piece of a poll and the next poll's go together.
+    assert [sum(len(chunk) for chunk in write) for write in writes] == [3 * line, 3 * line, 3 * line]
+    assert b"".join(chunk for write in writes for chunk in write) == b"".join(
+        item.data + b"\n" for item in [*items, _item(18, "r18", 28)]
+    )
+    assert not first.queue and first.waiting == 0
 
 
 def test_what_a_stream_takes_or_leaves_behind_is_let_go() -> None:
