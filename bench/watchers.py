@@ -3,16 +3,16 @@ of the missions open meanwhile, on GET /events (server-sent events) or GET /miss
 
 What it reports (bench/README.md, "Watchers"):
 - delivery: every watcher must have had every transition of every mission the run completed (PENDING,
-  RUNNING, COMPLETED, and each route node's), and the same objects in the same order as every other:
-  `--checked-watchers K` watchers parse every object and check each mission's transitions; every watcher
-  digests its stream from the run's first mission to an end-of-run mission posted after the fleet's run
-  (crc32 of the bytes with the SSE ids and keepalives taken out: those name each API process's own feed
-  positions), and the digests must all be the checked watchers'. Digesting is C code per read, no parsing,
-  so hundreds of watchers can be read on the server's own machine; dropped watchers and error events are
-  counted;
+  RUNNING, COMPLETED, and each route node's): `--checked-watchers K` watchers parse every object and check
+  each mission's transitions; every watcher digests its stream from the run's first mission to an
+  end-of-run mission posted after the fleet's run (crc32 of the bytes with the SSE ids and keepalives
+  taken out: those name each API process's own feed positions), and each digest must be one of the
+  checked watchers' (`_delivery`). Digesting is C code per read, no parsing, so hundreds of watchers can
+  be read on the server's own machine; dropped watchers and error events are counted;
 - drain: how long after the end-of-run mission was posted every watcher had it;
 - delivery latency: from the server's own time of a transition (a mission's start_timestamp for RUNNING,
-  end_timestamp for COMPLETED) to the watcher's reading of it, p50/p99/max over the checked watchers;
+  end_timestamp for COMPLETED) to the watcher's reading of it, p50/p99/max over the checked watchers, of
+  the transitions in the measurement window (as every other figure) and of the whole run;
 - REST latency meanwhile: GET /robot?names=... (10 robots) every PROBE_SECONDS, in the run's window;
 - the server's processes' memory and CPU over time: bench.fleet's own series (the `api` group is the
   process that serves the streams).
@@ -88,7 +88,8 @@ class Seen:
     active: dict[str, Progress] = field(default_factory=dict)
     completed: int = 0
     incomplete: int = 0  # completed missions of which a transition was not read
-    latency_ms: Counter[int] = field(default_factory=Counter)  # transition -> read, 1-ms buckets
+    # transition -> read in 1-ms buckets, per second (epoch) of the transition
+    latency_ms: Counter[tuple[int, int]] = field(default_factory=Counter)
     errors: list[str] = field(default_factory=list)
     objects: int = 0
     digest: int = 0  # crc32 of the stream from the run's first mission to the end-of-run one
@@ -104,7 +105,8 @@ class Seen:
             progress.states += STATE_LETTERS.get(state, "?")
             at = {"RUNNING": status["start_timestamp"], "COMPLETED": status["end_timestamp"]}.get(state)
             if at is not None:
-                self.latency_ms[int((read_at - _seconds(at)) * 1000)] += 1
+                happened = _seconds(at)
+                self.latency_ms[int(happened), int((read_at - happened) * 1000)] += 1
             progress.last_state = state
         for node, node_status in status["node_status"].items():
             letter = STATE_LETTERS.get(node_status["state"], "?")
@@ -249,23 +251,40 @@ async def _watchers(args: dict[str, Any], count: int, pipe: Connection) -> None:
     await asyncio.gather(*tasks, return_exceptions=True)
     for mine in seen:
         mine.active.clear()  # missions the run did not complete: nothing to check
-    pipe.send([vars(mine) for mine in seen])  # its fields, not a Seen: this module is __mp_main__ here
+    # Its fields, not a Seen: this module is __mp_main__ here. And the process's CPU: the clients' cost.
+    pipe.send(([vars(mine) for mine in seen], time.process_time()))
 
 
 def _delivery(watchers: list[Seen]) -> dict[str, Any]:
-    """Missions completed and checked, and the watchers whose stream's digest is not the checked ones'."""
+    """Missions completed and checked, and the watchers whose stream's digest is none of the checked ones'.
+
+    Watchers served by one API process read the same bytes; those of two processes may not: each process
+    reads the feed at its own moments, so changes of different objects that commit close together can
+    come in another order (each object's changes keep theirs). So a watcher must have read what a checked
+    watcher read, and the checked ones should cover every process (--checked-watchers)."""
     checked = [seen for seen in watchers if seen.checked]
-    usual = Counter((seen.digest, seen.digested) for seen in checked if seen.ended).most_common(1)
-    digest = usual[0][0] if usual else None
+    digests = {(seen.digest, seen.digested) for seen in checked if seen.ended}
     return {
         "missions_completed": max((seen.completed for seen in checked), default=0),
         "missions_without_every_transition": sum(seen.incomplete for seen in checked),
         "watchers_to_the_end": sum(seen.ended for seen in watchers),
-        "bytes_digested": digest[1] if digest else 0,
+        "checked_streams": len(digests),
+        "bytes_digested": max((digested for _, digested in digests), default=0),
         "watchers_that_read_otherwise": sum(
-            not seen.ended or (seen.digest, seen.digested) != digest for seen in watchers
+            not seen.ended or (seen.digest, seen.digested) not in digests for seen in watchers
         ),
     }
+
+
+def _latencies(watchers: list[Seen], window: tuple[float, float] | None = None) -> Counter[int]:
+    """Delivery latencies (1-ms buckets) of the transitions that happened in `window` (epoch s; all if
+    None), over every watcher."""
+    buckets: Counter[int] = Counter()
+    for seen in watchers:
+        for (second, latency), count in seen.latency_ms.items():
+            if window is None or window[0] <= second < window[1]:
+                buckets[latency] += count
+    return buckets
 
 
 async def _probe(
@@ -336,22 +355,31 @@ async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, An
     else:
         drained = time.monotonic() - posted
     watchers: list[Seen] = []
+    clients_cpu_seconds = 0.0
     for process, pipe in children:
         pipe.send("stop")
         while (answer := await loop.run_in_executor(None, pipe.recv)) == "ended":
             pass
-        watchers += [Seen(**fields) for fields in answer]
+        seen, cpu_seconds = answer
+        watchers += [Seen(**fields) for fields in seen]
+        clients_cpu_seconds += cpu_seconds
         process.join(timeout=30)
     window = bench.window
+    # The window in the server's clock (this machine's): the transitions it measures happened in it.
+    epoch_offset = time.time() - time.monotonic()
+    window_epoch = (window.start + epoch_offset, window.end + epoch_offset)
     result["watchers"] = {
         "count": args.watchers,
         "checked": checked,
         "framing": args.framing,
         "processes": args.watcher_processes,
+        # The watcher processes' CPU over their whole life (connecting, the run, the drain), in seconds.
+        "clients_cpu_seconds": round(clients_cpu_seconds, 1),
         "objects_read": sum(seen.objects for seen in watchers),
         "delivery": _delivery(watchers),
         "drain_seconds": None if drained is None else round(drained, 2),
-        "delivery_latency_ms": _histogram_summary(sum((seen.latency_ms for seen in watchers), Counter())),
+        "delivery_latency_ms": _histogram_summary(_latencies(watchers, window_epoch)),
+        "delivery_latency_ms_whole_run": _histogram_summary(_latencies(watchers)),
         "errors": sum(len(seen.errors) for seen in watchers),
         "error_samples": [error for seen in watchers for error in seen.errors][: fleet.MAX_LOGGED_ERRORS],
         "rest_get_robot_ms": measure.latency_summary([latency for at, latency in probes if at in window]),
@@ -362,6 +390,7 @@ async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, An
 def markdown(result: dict[str, Any]) -> str:
     watchers = result["watchers"]
     delivery, latency = watchers["delivery"], watchers["delivery_latency_ms"]
+    whole = watchers["delivery_latency_ms_whole_run"]
     rest, step = watchers["rest_get_robot_ms"], result["step_latency_ms"]
     robots = result["options"]["robots"]
     rss = result["drift"]["rss_mb"].get("api", {})
@@ -380,12 +409,15 @@ def markdown(result: dict[str, Any]) -> str:
             f"| watchers that read to the end of the run | {delivery['watchers_to_the_end']} |",
             f"| every watcher at the end of the run after (s) | {watchers['drain_seconds']} |",
             f"| errors (dropped, failed) | {watchers['errors']} |",
-            f"| delivery latency p50 / p99 / max ms | {latency['p50']} / {latency['p99']} / {latency['max']} "
-            "|",
+            f"| delivery latency p50 / p99 / max ms (window) | {latency['p50']} / {latency['p99']} / "
+            f"{latency['max']} |",
+            f"| delivery latency p50 / p99 / max ms (whole run) | {whole['p50']} / {whole['p99']} / "
+            f"{whole['max']} |",
             f"| REST GET /robot p50 / p99 ms (window) | {rest['p50']} / {rest['p99']} |",
             f"| step latency p50 / p99 ms | {step['p50']} / {step['p99']} |",
             f"| api RSS over the window, first / last / max (MB) | {rss.get('first')} / {rss.get('last')} / "
             f"{rss.get('max')} |",
+            f"| watcher clients' CPU, whole run (s) | {watchers['clients_cpu_seconds']} |",
             f"| CPU speed (ms of calibration work) | {result['machine']['cpu_speed_ms']} |",
             "",
         ]

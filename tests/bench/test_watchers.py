@@ -60,7 +60,9 @@ def test_a_short_run_delivers_every_transition_to_every_watcher(
     assert delivery["watchers_that_read_otherwise"] == 0
     assert watchers["errors"] == 0, watchers["error_samples"]
     # RUNNING and COMPLETED of each completed mission, on the checked watcher (and of missions cut short).
-    assert watchers["delivery_latency_ms"]["count"] >= 2 * delivery["missions_completed"]
+    assert watchers["delivery_latency_ms_whole_run"]["count"] >= 2 * delivery["missions_completed"]
+    # Those that happened in the measurement window: some, not all.
+    assert 0 < watchers["delivery_latency_ms"]["count"] < watchers["delivery_latency_ms_whole_run"]["count"]
     assert watchers["delivery_latency_ms"]["p99"] < 60_000
     assert watchers["rest_get_robot_ms"]["count"] > 0
     assert "api" in result["drift"]["rss_mb"]
