@@ -17,19 +17,26 @@ import os
 from collections.abc import AsyncIterator, Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
-from typing import Any
+from typing import IO, Any
 
 import django
 from asgiref.sync import ThreadSensitiveContext, sync_to_async
 from django.conf import settings
-from django.core.handlers.asgi import ASGIHandler
+from django.core import signals
+from django.core.exceptions import RequestAborted
+from django.core.handlers.asgi import ASGIHandler, get_script_prefix
 from django.db import connections
-from django.http import HttpRequest, HttpResponseBase
+from django.http import FileResponse, HttpRequest, HttpResponseBase
+from django.urls import set_script_prefix
 
 from fleet.serving import STREAM_PATHS, api_process_start
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
 django.setup(set_prefix=False)  # as django.core.asgi.get_asgi_application
+
+Scope = dict[str, Any]
+Message = dict[str, Any]
+Receive = Callable[[], Awaitable[Message]]
 
 
 class ApiHandler(ASGIHandler):
@@ -45,11 +52,44 @@ class ApiHandler(ASGIHandler):
         return await sync_to_async(self.get_response, thread_sensitive=True)(request)
 
 
-django_application = ApiHandler()
+class RestHandler(ApiHandler):
+    """ApiHandler for REST requests: the request_started signal, the request, the view and, when the
+    response's content is all there, its close (request_finished) in one call on the request's thread,
+    where Django's handler goes to a thread three times; and no task that listens for the client's
+    disconnect meanwhile, which a view on a thread could not heed anyway (the streams, which can, keep
+    Django's handler). A streamed response (a static file) is closed after it is sent, as Django does."""
 
-Scope = dict[str, Any]
-Message = dict[str, Any]
-Receive = Callable[[], Awaitable[Message]]
+    async def handle(self, scope: Scope, receive: Receive, send: Any) -> None:
+        try:
+            body_file = await self.read_body(receive)
+        except RequestAborted:
+            return
+        set_script_prefix(get_script_prefix(scope))
+        try:
+            response = await sync_to_async(self._respond, thread_sensitive=True)(scope, body_file)
+            try:
+                await self.send_response(response, send)
+            finally:
+                if response.streaming:
+                    await sync_to_async(response.close, thread_sensitive=True)()
+        finally:
+            body_file.close()
+
+    def _respond(self, scope: Scope, body_file: IO[bytes]) -> HttpResponseBase:
+        signals.request_started.send(sender=self.__class__, scope=scope)
+        request, response = self.create_request(scope, body_file)
+        if request is not None:
+            response = self.get_response(request)
+            response._handler_class = self.__class__
+        if isinstance(response, FileResponse):
+            response.block_size = self.chunk_size
+        if not response.streaming:
+            response.close()
+        return response
+
+
+django_application = ApiHandler()
+rest_application = RestHandler()
 
 
 class RequestThreads:
@@ -82,7 +122,7 @@ async def application(scope: Scope, receive: Receive, send: Any) -> None:
         await STREAM_OPENINGS.run(scope, receive, send)
         return
     async with REQUEST_THREADS.lend() as thread, ThreadSensitiveContext(executor=thread):
-        await django_application(scope, receive, send)
+        await rest_application(scope, receive, send)
 
 
 def _bounded(receive: Receive) -> Receive:
