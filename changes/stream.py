@@ -72,15 +72,14 @@ class Framed:
     """One read's items as the watchers that share the read and a framing get them: framed once, in pieces
     of at most WRITE_BYTES (whole items) that every such watcher's queue holds (the same objects)."""
 
-    items: list[Item]
     pieces: list[tuple[bytes, int]]  # (bytes, items in them)
+    lines: int  # items in all
 
     @classmethod
     def of(cls, items: Iterable[Item], framing: Framing, *, since: str, position: str) -> Framed:
-        items = list(items)
         pieces: list[tuple[bytes, int]] = []
         lines: list[bytes] = []
-        size = 0
+        size = count = 0
         for item in items:
             line = framing.item(item, since=since, position=position)
             if lines and size + len(line) > WRITE_BYTES:
@@ -88,9 +87,10 @@ class Framed:
                 lines, size = [], 0
             lines.append(line)
             size += len(line)
+            count += 1
         if lines:
             pieces.append((b"".join(lines), len(lines)))
-        return cls(items=items, pieces=pieces)
+        return cls(pieces=pieces, lines=count)
 
 
 class Ledger:
@@ -174,9 +174,9 @@ class Watcher:
         """Queue one read's items (the changes after `since` up to `position`); the watcher is then at
         `position`. A watcher too far behind is told and dropped."""
         self.since = position
-        if self.dropped or not framed.items:
+        if self.dropped or not framed.lines:
             return
-        if self.waiting + len(framed.items) > settings.WATCH_QUEUE_LINES:
+        if self.waiting + framed.lines > settings.WATCH_QUEUE_LINES:
             self.drop(
                 "watcher_behind",
                 f"More than {settings.WATCH_QUEUE_LINES} changes waited for this watcher: it is dropped. "
