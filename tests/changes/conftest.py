@@ -4,6 +4,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from django.db import connection
 
 from access.services import api_token_create
 from tests.granian_server import ASGI, GranianServer, granian_server
@@ -27,6 +28,16 @@ def stream_server(transactional_db: None, tmp_path: Path) -> Iterator[GranianSer
     }
     with granian_server(ASGI, log=tmp_path / "stream.log", token=token, env=env) as server:
         yield server
+
+
+def server_connections() -> int:
+    """Connections to the test database other than this test's own: the server's."""
+    with connection.cursor() as cursor:
+        cursor.execute(
+            "SELECT count(*) FROM pg_stat_activity WHERE datname = %s AND pid <> pg_backend_pid()",
+            [connection.settings_dict["NAME"]],
+        )
+        return cursor.fetchone()[0]
 
 
 __all__ = ["watches"]

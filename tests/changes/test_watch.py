@@ -5,12 +5,12 @@ import time
 
 import pytest
 import requests
-from django.db import connection, transaction
+from django.db import transaction
 
 from changes.models import Change
 from missions.models import Mission
 from robots.models import Robot
-from tests.changes.conftest import API_THREADS
+from tests.changes.conftest import API_THREADS, server_connections
 from tests.database import other_connection
 from tests.waiting import wait_for
 from tests.watching import Watch
@@ -186,16 +186,6 @@ def test_twenty_open_watches_leave_requests_unhindered(stream_server, api, watch
     assert all(watch.next()["heartbeat_timeout"] == 5.0 for watch in watches)
 
 
-def _stream_server_connections() -> int:
-    """Connections to the test database other than this test's own: the server's."""
-    with connection.cursor() as cursor:
-        cursor.execute(
-            "SELECT count(*) FROM pg_stat_activity WHERE datname = %s AND pid <> pg_backend_pid()",
-            [connection.settings_dict["NAME"]],
-        )
-        return cursor.fetchone()[0]
-
-
 def test_open_streams_and_finished_requests_hold_no_database_connection(stream_server, api, watches):
     """A stream's request runs in a thread of its own: its connection must close with it (an
     unauthenticated client must not be able to use up PostgreSQL's connections), and an open stream, which
@@ -211,7 +201,7 @@ def test_open_streams_and_finished_requests_hold_no_database_connection(stream_s
         assert requests.get(url, headers=stream_server.auth, timeout=10).status_code == 400
     assert all(watch.next()["name"] == "wc-1" for watch in watches)
     wait_for(
-        lambda: _stream_server_connections() <= 1 + API_THREADS,
+        lambda: server_connections() <= 1 + API_THREADS,
         message="the stream requests' connections to close",
     )
     api.put("/robot/wc-1", {"heartbeat_timeout": 7})
