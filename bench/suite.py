@@ -80,6 +80,8 @@ SUITES["short"] = {
 SUITES["n2000"] = {
     "realistic-n2000": [*REALISTIC_N2000, "--duration", "120", "--warmup", "40", "--sample-every", "30"]
 }
+# Saturation at N=100 alone, for A/B pairs of a change to the CPU per order (bench/README.md).
+SUITES["saturation"] = {"saturation-n100": SUITES["short"]["saturation-n100"]}
 # The saturation runs alone, to compare layouts (--bridges, --workers).
 SUITES["scale"] = {label: SUITES["full"][label] for label in ("saturation-n100", "saturation-n500")}
 
