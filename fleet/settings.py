@@ -233,6 +233,9 @@ DATA_UPLOAD_MAX_NUMBER_FIELDS = max(1000, API_MAX_FILTER_VALUES + 100)
 # --- Redis and Celery -----------------------------------------------------------------------------
 REDIS_URL = env_str("FLEET_REDIS_URL", "redis://127.0.0.1:6379/0")
 CELERY_BROKER_URL = env_str("FLEET_CELERY_BROKER_URL", REDIS_URL)
+# kombu's Redis transport with a client reused and a fix for dropped connections (`fleet.broker`).
+if CELERY_BROKER_URL.partition("://")[0] in ("redis", "rediss"):
+    CELERY_BROKER_TRANSPORT = "fleet.broker:Transport"
 CELERY_TASK_IGNORE_RESULT = True
 CELERY_TASK_ACKS_LATE = True
 CELERY_TASK_REJECT_ON_WORKER_LOST = True

@@ -5,15 +5,14 @@ import pytest
 import redis
 from django.conf import settings
 
-import fleet.celery  # noqa: F401  (installs the workaround tested here)
-
 
 @pytest.mark.parametrize("torn_down", ["client", "connection"])
 def test_a_channel_whose_connection_is_gone_fails_as_a_connection_error(torn_down: str) -> None:
     """kombu restores unacknowledged tasks and rejects messages on channels whose connection Redis dropped
     and kombu tore down: unpatched, an AttributeError ended the worker; a connection error is one kombu
     handles (it reconnects)."""
-    with kombu.Connection(settings.CELERY_BROKER_URL) as connection:
+    broker = kombu.Connection(settings.CELERY_BROKER_URL, transport=settings.CELERY_BROKER_TRANSPORT)
+    with broker as connection:
         channel = connection.default_channel
         channel.qos._delivered["an-unacknowledged-task"] = None
         transport, client = channel.connection, channel.connection.client
@@ -28,3 +27,20 @@ def test_a_channel_whose_connection_is_gone_fails_as_a_connection_error(torn_dow
         finally:
             channel.connection, transport.client = transport, client
             channel.qos._delivered.clear()
+
+
+def test_a_channel_publishes_and_acknowledges_through_one_client_per_pool() -> None:
+    """Celery's connections use fleet.broker's transport, whose channel reuses one Redis client (kombu made
+    one per publish and acknowledgement); a new pool (after a reconnect) gets a new client."""
+    from fleet.celery import app
+
+    with app.connection_for_write() as connection:
+        channel = connection.default_channel
+        assert type(channel).__module__ == "fleet.broker"
+        with channel.conn_or_acquire() as first, channel.conn_or_acquire() as second:
+            assert first is second
+            assert first.ping()
+        channel._pool = None
+        with channel.conn_or_acquire() as third:
+            assert third is not first
+            assert third.connection_pool is channel.pool

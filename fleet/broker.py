@@ -1,0 +1,45 @@
+"""kombu's Redis transport as Celery's broker (`CELERY_BROKER_TRANSPORT`), with two changes to its channel.
+
+Imports only kombu and redis: kombu loads it by name when Celery first connects to the broker.
+"""
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import kombu.transport.redis
+import redis
+
+
+class Channel(kombu.transport.redis.Channel):
+    _plain_client: redis.Redis | None = None
+
+    @contextmanager
+    def conn_or_acquire(self, client: redis.Redis | None = None) -> Iterator[redis.Redis]:
+        """One client per connection pool, where kombu made a new one for every publish, delivery and
+        acknowledgement: building a redis-py client (its response callbacks) was 7 % of a step worker's
+        and of the bridge's CPU (bench/README.md). A client is thread-safe: each command takes a
+        connection from the pool."""
+        if client is not None:
+            yield client
+            return
+        pool = self.pool
+        plain = self._plain_client
+        if plain is None or plain.connection_pool is not pool:
+            plain = self._plain_client = self._create_client()
+        yield plain
+
+    def _connparams(self, asynchronous: bool = False) -> dict[str, Any]:
+        """kombu 5.7, after Redis dropped the connection, still acts on channels whose connection it has
+        torn down (restoring unacknowledged tasks when a channel closes, rejecting a message) and fails
+        with an AttributeError ('NoneType' object has no attribute 'hostname' / 'client') that ends the
+        worker ("Unrecoverable error", seen in the fault suite when Redis was killed while steps were in
+        flight). As a connection error the same failure is one kombu handles: it reconnects, and tasks
+        left unacknowledged are delivered again after the visibility timeout."""
+        if self.connection is None or self.connection.client is None:
+            raise redis.exceptions.ConnectionError("the broker connection is gone")
+        return super()._connparams(asynchronous)
+
+
+class Transport(kombu.transport.redis.Transport):
+    Channel = Channel
