@@ -182,3 +182,54 @@ def test_an_operator_starts_and_stops_teleop_from_the_page(fleet: FleetPage, api
     expect(fleet.page.locator("#notice")).to_contain_text(f"Teleop STOP for {robot}: done")
     teleops = WriteRecord.objects.filter(action=WriteAction.ROBOT_TELEOP).values_list("actor", flat=True)
     assert list(teleops) == ["user:operator", "user:operator"]
+
+
+def test_a_running_missions_route_is_drawn_driven_and_ahead_and_goes_when_it_ends(
+    fleet: FleetPage, api, simulator: Callable[..., Simulator], unique
+):
+    robot, idle, hall = unique("route"), unique("idle"), unique("hall")
+    simulator(f"{robot},0,0", f"{idle},6,6", f"{hall},0,0,0,hall", extra=("--speed", "1"))
+    for name in (robot, idle, hall):
+        create_robot(api, name)
+    expect(fleet.page.locator("#map-choice option")).to_have_text(["hall (1)", "map (2)"])
+    across = post_mission(api, unique("across"), hall, [route("across", (30, 0), map_id="hall")])["name"]
+    wait_mission(api, across, {"RUNNING"})
+    fleet.select(robot)
+    fleet.record(f'.route-waypoint[data-robot="{robot}"]', "data-progress", "data-waypoint")
+
+    tree = [route("out", (2, 0), (2, 2)), route("back", (0, 2))]
+    name = post_mission(api, unique("m"), robot, tree)["name"]
+    expect(fleet.waypoints(robot)).to_have_count(3)
+    expect(fleet.route(robot)).to_have_class(re.compile(r"\bselected\b"))
+    # Changed while it runs: the page follows without a reload.
+    update = {"back": {"waypoints": [{"x": 0, "y": 3, "theta": 0, "map_id": "map"}]}}
+    assert api.post(f"/mission/{name}/update", update, format="json").status_code == 200
+    expect(fleet.page.locator('.route-waypoint[data-waypoint="back.0"]')).to_have_attribute("data-y", "3")
+    # On the robots' scale, y up: out.1 (2, 2) 2 m above out.0 (2, 0), back.0 (0, 3) 2 m left of out.1.
+    dots = fleet.waypoint_centres(robot)
+    metre = (dots["out.0"][1] - dots["out.1"][1]) / 2
+    assert metre > 5
+    assert dots["out.1"][0] == pytest.approx(dots["out.0"][0], abs=1)
+    assert dots["back.0"][0] == pytest.approx(dots["out.1"][0] - 2 * metre, abs=1)
+    assert dots["back.0"][1] == pytest.approx(dots["out.0"][1] - 3 * metre, abs=1)
+
+    # Driving on: the first waypoint passed, the line driven up to the robot.
+    first = fleet.page.locator('.route-waypoint[data-waypoint="out.0"]')
+    expect(first).to_have_attribute("data-progress", "passed")
+    assert "L" in fleet.route(robot, "route-driven").get_attribute("d")  # M x y L x y ...: a line
+    # Only the robots on the map shown, only running missions' routes.
+    expect(fleet.waypoints(hall)).to_have_count(0)
+    expect(fleet.waypoints(idle)).to_have_count(0)
+
+    assert wait_mission(api, name)["status"]["state"] == "COMPLETED"
+    expect(fleet.waypoints(robot)).to_have_count(0)
+    expect(fleet.page.locator(f'[data-robot="{robot}"]:is(.route-ahead, .route-driven)')).to_have_count(0)
+    progress = fleet.recorded()
+    assert progress["out.0"] == ["ahead", "passed"], progress
+    assert progress["out.1"] == ["ahead", "passed"], progress
+    assert progress["back.0"][0] == "ahead", progress
+
+    fleet.show_map("hall")
+    expect(fleet.waypoints(hall)).to_have_count(1)
+    expect(fleet.waypoints(hall)).to_have_attribute("data-x", "30")
+    expect(fleet.route(hall)).to_have_count(1)

@@ -95,6 +95,26 @@ class FleetPage:
         self.marker(robot).click()
         self.page.locator("#robot-name").filter(has_text=re.compile(f"^{re.escape(robot)}$")).wait_for()
 
+    def route(self, robot: str, part: str = "route-ahead") -> "Locator":
+        """A line of the robot's route on the map: `route-ahead` (still to drive) or `route-driven`."""
+        return self.page.locator(f'.{part}[data-robot="{robot}"]')
+
+    def waypoints(self, robot: str) -> "Locator":
+        """The dots of the waypoints of the robot's route on the map."""
+        return self.page.locator(f'.route-waypoint[data-robot="{robot}"]')
+
+    def waypoint_centres(self, robot: str) -> dict[str, tuple[float, float]]:
+        """Where each waypoint dot of the robot's route is on the screen, in pixels (y down), by waypoint
+        (`<route node>.<index>`), read at one moment."""
+        return self.page.evaluate(
+            "(robot) => Object.fromEntries([...document.querySelectorAll('.route-waypoint')]"
+            "  .filter((dot) => dot.dataset.robot === robot).map((dot) => {"
+            "    const box = dot.getBoundingClientRect();"
+            "    return [dot.dataset.waypoint, [box.x + box.width / 2, box.y + box.height / 2]];"
+            "  }))",
+            robot,
+        )
+
     def mission_row(self, mission: str) -> "Locator":
         return self.page.locator(f'#mission-rows tr[data-mission="{mission}"]')
 

@@ -16,6 +16,7 @@ const NODE_FIELDS = new Set(["name", "parent"]); // a node's other non-null fiel
 
 const robots = new Map(); // name -> robot, as GET /robot/{name} has it
 const missions = new Map(); // name -> mission, as GET /mission/{name} has it; in the order first seen
+const running = new Map(); // robot name -> the name of its RUNNING mission
 const changed = { robots: new Set(), missions: new Set(), missionRobots: new Set(), maps: false };
 let frame = 0;
 let received = null; // names sent since the stream (re)opened: after a snapshot, the others are gone
@@ -26,6 +27,7 @@ let selected = null; // the robot whose panel is open
 let queueOrder = []; // its queued missions in queue order, as GET /mission listed them
 let shownTree = null; // {name, items: Map(node name -> <li>)} of the tree in the panel
 let noticeTimer = 0;
+let crowded = false; // more than CROWDED robots on the map shown
 
 const $ = (id) => document.getElementById(id);
 
@@ -160,12 +162,183 @@ function showMap(id) {
   markerLayer.clearLayers();
   markers.clear();
   for (const name of robots.keys()) drawRobot(name);
+  for (const name of robots.keys()) drawRoute(name);
   fitPending = true;
 }
 
 function fitRobots() {
   const points = [...markers.values()].map((marker) => marker.getLatLng());
   if (points.length) map.fitBounds(L.latLngBounds(points).pad(0.15), { maxZoom: 5 });
+}
+
+// --- routes -----------------------------------------------------------------------------------------------
+
+// The route of each robot's running mission on the map shown (when crowded: the selected robot's only): its
+// waypoints as dots, the part driven in grey, the part still to drive in the mission colour, split at the
+// robot. The robots report no VDA 5050 node ids through the API, so which waypoints of the running route
+// the robot has passed is the page's estimate (`passedOf`); those of finished routes are passed, those of
+// routes to come are not.
+const routeLayer = L.layerGroup().addTo(map);
+const shownRoutes = new Map(); // robot name -> {mission, driven, ahead, dots (id -> dot), selected}: its layers
+const progress = new Map(); // robot name -> {mission, origin, node, start, next}: how far it got, as seen
+
+function drawRoute(name) {
+  const robot = robots.get(name);
+  const mission = missions.get(running.get(name));
+  if (!mission) progress.delete(name);
+  let shown = shownRoutes.get(name);
+  if (shown && shown.mission !== mission?.name) {
+    removeRoute(name);
+    shown = undefined;
+  }
+  if (!robot || !mission || !markers.has(name) || (crowded && name !== selected)) {
+    removeRoute(name);
+    return;
+  }
+  const route = routeOf(robot, mission);
+  if (!shown) {
+    const line = (className) => L.polyline([], { className, interactive: false });
+    shown = { mission: mission.name, driven: line("route-driven"), ahead: line("route-ahead"), dots: new Map() };
+    for (const part of [shown.driven, shown.ahead]) {
+      routeLayer.addLayer(part);
+      part.getElement().dataset.robot = name;
+      part.getElement().dataset.mission = mission.name;
+    }
+    shownRoutes.set(name, shown);
+  }
+  shown.driven.setLatLngs(route.driven);
+  shown.ahead.setLatLngs(route.ahead);
+  const ids = new Set();
+  let added = false;
+  for (const waypoint of route.waypoints) {
+    ids.add(waypoint.id);
+    let dot = shown.dots.get(waypoint.id);
+    if (!dot) {
+      dot = L.circleMarker(waypoint.at, { className: "route-waypoint", radius: 4, interactive: false });
+      routeLayer.addLayer(dot);
+      Object.assign(dot.getElement().dataset, { robot: name, mission: mission.name, waypoint: waypoint.id });
+      shown.dots.set(waypoint.id, dot);
+      added = true;
+    } else if (!dot.getLatLng().equals(waypoint.at)) {
+      dot.setLatLng(waypoint.at); // the route was updated
+    }
+    const data = dot.getElement().dataset;
+    const looks = { x: `${waypoint.x}`, y: `${waypoint.y}`, progress: waypoint.passed ? "passed" : "ahead" };
+    for (const [look, value] of Object.entries(looks)) {
+      if (data[look] !== value) data[look] = value;
+    }
+  }
+  for (const [id, dot] of shown.dots) {
+    if (!ids.has(id)) {
+      routeLayer.removeLayer(dot);
+      shown.dots.delete(id);
+    }
+  }
+  if (shown.selected !== (name === selected) || (shown.selected && added)) {
+    // The selected robot's route stands out, drawn over the others.
+    shown.selected = name === selected;
+    for (const layer of [shown.driven, shown.ahead, ...shown.dots.values()]) {
+      layer.getElement().classList.toggle("selected", shown.selected);
+      if (shown.selected) layer.bringToFront();
+    }
+  }
+}
+
+function removeRoute(name) {
+  const shown = shownRoutes.get(name);
+  if (!shown) return;
+  for (const layer of [shown.driven, shown.ahead, ...shown.dots.values()]) routeLayer.removeLayer(layer);
+  shownRoutes.delete(name);
+}
+
+function routeOf(robot, mission) {
+  // The lines (driven, ahead) and the waypoints of the mission's route legs, split where the robot is; only
+  // the points on the map shown.
+  const here = L.latLng(robot.status.pose.y, robot.status.pose.x);
+  const legs = routeLegs(mission);
+  let trail = progress.get(robot.name);
+  if (trail?.mission !== mission.name) {
+    // The driven line begins where the page first saw the robot on this mission, unless it had finished a
+    // route by then (where it came from is not known).
+    const begun = legs.some((leg) => leg.state === "COMPLETED");
+    trail = { mission: mission.name, origin: begun ? null : here, node: null, start: null, next: 0 };
+    progress.set(robot.name, trail);
+  }
+  const driven = trail.origin ? [trail.origin] : [];
+  const ahead = [];
+  const waypoints = [];
+  for (const leg of legs) {
+    const points = leg.waypoints.map((waypoint, index) => ({
+      id: `${leg.name}.${index}`,
+      x: waypoint.x,
+      y: waypoint.y,
+      at: L.latLng(waypoint.y, waypoint.x),
+      map: waypoint.map_id || DEFAULT_MAP,
+    }));
+    let passed = leg.state === "COMPLETED" ? points.length : 0;
+    if (leg.state === "RUNNING") passed = passedOf(trail, leg.name, points, here, driven.at(-1) ?? here);
+    points.forEach((point, index) => {
+      point.passed = index < passed;
+      if (point.map !== shownMap) return;
+      (point.passed ? driven : ahead).push(point.at);
+      waypoints.push(point);
+    });
+  }
+  return { driven: [...driven, here], ahead: [here, ...ahead], waypoints };
+}
+
+function routeLegs(mission) {
+  // The mission's route nodes in the order the robot drives them (depth first, in mission_tree's order),
+  // with their state and waypoints (as POST /mission/{name}/update left them). Left out: routes that failed
+  // or were canceled, and pending ones under a composite that has finished (they will not run).
+  const stateOf = (name) => mission.status.node_status[name]?.state ?? "PENDING";
+  const children = new Map();
+  for (const node of mission.mission_tree) {
+    if (!children.has(node.parent)) children.set(node.parent, []);
+    children.get(node.parent).push(node);
+  }
+  const legs = [];
+  const visit = (parent, finished) => {
+    for (const node of children.get(parent) ?? []) {
+      const state = stateOf(node.name);
+      if (node.route && (state === "COMPLETED" || state === "RUNNING" || (state === "PENDING" && !finished))) {
+        const waypoints = (mission.update_nodes?.[node.name] ?? node.route).waypoints;
+        legs.push({ name: node.name, state, waypoints });
+      }
+      visit(node.name, finished || DONE.has(state));
+    }
+  };
+  visit("root", DONE.has(stateOf("root")));
+  return legs;
+}
+
+function passedOf(trail, node, points, here, start) {
+  // How many waypoints of its running route the robot has passed, estimated: it is on the leg it is nearest
+  // to (from where the route started to the first waypoint, or from one waypoint to the next), and never
+  // goes back. A waypoint counts as passed once the robot is nearer the leg after it.
+  if (trail.node !== node) Object.assign(trail, { node, start, next: 0 });
+  let nearest = Infinity;
+  let next = Math.min(trail.next, points.length - 1);
+  for (let index = next; index < points.length; index += 1) {
+    const from = index === 0 ? trail.start : points[index - 1].at;
+    const distance = distanceToLeg(here, from, points[index].at);
+    if (distance < nearest) {
+      nearest = distance;
+      next = index;
+    }
+  }
+  trail.next = next;
+  return next;
+}
+
+function distanceToLeg(point, from, to) {
+  // Metres from `point` to the straight line between `from` and `to` (x is lng, y is lat).
+  const dx = to.lng - from.lng;
+  const dy = to.lat - from.lat;
+  const length2 = dx * dx + dy * dy;
+  const projected = length2 ? ((point.lng - from.lng) * dx + (point.lat - from.lat) * dy) / length2 : 0;
+  const along = Math.max(0, Math.min(1, projected));
+  return Math.hypot(point.lng - from.lng - along * dx, point.lat - from.lat - along * dy);
 }
 
 // --- the stream -----------------------------------------------------------------------------------------
@@ -215,6 +388,8 @@ function receive(kind, object) {
     changed.robots.add(object.name);
   } else {
     deleted ? missions.delete(object.name) : missions.set(object.name, object);
+    if (!deleted && object.status.state === "RUNNING") running.set(object.robot, object.name);
+    else if (running.get(object.robot) === object.name) running.delete(object.robot);
     changed.missions.add(object.name);
     changed.missionRobots.add(object.robot);
   }
@@ -257,7 +432,12 @@ function flush() {
     fitRobots();
     fitPending = false;
   }
-  $("map").classList.toggle("crowded", markers.size > CROWDED);
+  if (crowded !== markers.size > CROWDED) {
+    crowded = !crowded;
+    $("map").classList.toggle("crowded", crowded);
+    for (const name of robots.keys()) drawRoute(name);
+  }
+  for (const name of new Set([...changed.robots, ...changed.missionRobots])) drawRoute(name);
   if (changed.missions.size || changed.list) drawMissionList();
   if (selected && (changed.panel || changed.robots.has(selected) || changed.missionRobots.has(selected))) {
     drawPanel();
@@ -355,9 +535,13 @@ async function select(name) {
   queueOrder = [];
   shownTree = null;
   $("robot-panel").hidden = name === null;
-  if (previous) drawRobot(previous);
+  if (previous) {
+    drawRobot(previous);
+    drawRoute(previous);
+  }
   if (name === null) return;
   drawRobot(name);
+  drawRoute(name);
   changed.panel = true;
   scheduleFrame();
   const url = new URL(config.mission_list_url, location.href);
