@@ -3,7 +3,7 @@ API's server-sent events (GET /events) and goes back through the REST API with t
 
 from django.conf import settings
 from django.contrib.admin.views.decorators import staff_member_required
-from django.http import HttpRequest, HttpResponse
+from django.http import HttpRequest, HttpResponse, QueryDict
 from django.shortcuts import render
 from django.urls import reverse
 
@@ -17,7 +17,7 @@ NAME = "__name__"
 @staff_member_required
 def fleet_page(request: HttpRequest) -> HttpResponse:
     """The page and what its script needs to know: where the events and the API's actions are, and the
-    mission states to filter by."""
+    mission states to filter by; and the login to send the operator to once the session has ended."""
     config = {
         "events_url": reverse("events"),
         "mission_snapshot": settings.PAGE_MISSIONS,
@@ -28,4 +28,11 @@ def fleet_page(request: HttpRequest) -> HttpResponse:
         "mission_states": list(MissionState),
         "done_states": sorted(DONE_STATES),
     }
-    return render(request, "fleetpage/fleet.html", {"config": config})
+    return render(request, "fleetpage/fleet.html", {"config": config, "login_url": _login_url()})
+
+
+def _login_url() -> str:
+    """The admin's login, back to this page after it (as staff_member_required sends anonymous visitors)."""
+    query = QueryDict(mutable=True)
+    query["next"] = reverse("fleetpage:fleet")
+    return f"{reverse('admin:login')}?{query.urlencode(safe='/')}"

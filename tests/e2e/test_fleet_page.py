@@ -4,9 +4,11 @@ comes only from the events; what it does goes through the REST API with the oper
 
 import math
 import re
+import time
 from collections.abc import Callable, Iterator
 
 import pytest
+from django.contrib.sessions.models import Session
 
 from access.choices import WriteAction
 from access.models import WriteRecord
@@ -233,3 +235,52 @@ def test_a_running_missions_route_is_drawn_driven_and_ahead_and_goes_when_it_end
     expect(fleet.waypoints(hall)).to_have_count(1)
     expect(fleet.waypoints(hall)).to_have_attribute("data-x", "30")
     expect(fleet.route(hall)).to_have_count(1)
+
+
+def stream_openings(fleet: FleetPage) -> list[float]:
+    """When the page asked for GET /events from now on (monotonic seconds), as the browser sent them."""
+    opened: list[float] = []
+    fleet.page.on("request", lambda request: "/events" in request.url and opened.append(time.monotonic()))
+    return opened
+
+
+def expect_login_prompt(fleet: FleetPage) -> None:
+    prompt = fleet.page.locator("#session-ended")
+    expect(prompt).to_be_visible(timeout=60_000)
+    expect(prompt).to_have_text("Your session has ended — log in again")
+    link = prompt.get_by_role("link", name="log in again")
+    expect(link).to_have_attribute("href", "/admin/login/?next=/fleet")
+    expect(fleet.page.locator("#stream")).to_have_attribute("data-stream", "ended")
+
+
+def test_a_stream_refused_after_a_logout_asks_for_a_login_and_is_not_retried(fleet: FleetPage, stack: Stack):
+    opened = stream_openings(fleet)
+    with fleet.page.context.expect_page() as tab:  # another tab of the same browser: the same session
+        fleet.page.evaluate("() => { window.open('/admin/'); }")
+    other = tab.value
+    other.get_by_role("button", name="Log out").click()
+    expect(other.locator("#content")).to_contain_text("Logged out")
+    # A stream is authenticated when it opens: the open one ends with the API process, and EventSource's
+    # reconnection is refused.
+    stack.processes["api"].restart()
+
+    expect_login_prompt(fleet)
+    refused = len(opened)
+    assert refused >= 1
+    # More than two of the 5 s a refused stream used to wait before it was tried again (Playwright's wait, so
+    # that the page's requests are seen).
+    fleet.page.wait_for_timeout(12_000)
+    assert len(opened) == refused
+
+
+def test_an_api_call_refused_for_an_ended_session_asks_for_a_login(fleet: FleetPage, api, simulated_robot):
+    robot = simulated_robot("session")
+    expect(fleet.marker(robot)).to_have_count(1)
+    opened = stream_openings(fleet)
+    Session.objects.all().delete()  # expired, or cleared on the server
+
+    fleet.marker(robot).click()  # the panel asks GET /mission for the robot's queue: 401
+
+    expect_login_prompt(fleet)
+    fleet.page.wait_for_timeout(3_000)  # more than the stream's retry (FLEET_EVENTS_RETRY_SECONDS)
+    assert opened == []  # the stream was closed, not retried

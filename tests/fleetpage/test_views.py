@@ -57,6 +57,8 @@ def test_a_staff_user_gets_the_page_and_where_its_data_and_actions_are():
     assert config["mission_states"] == ["PENDING", "RUNNING", "COMPLETED", "CANCELED", "FAILED"]
     assert config["done_states"] == ["CANCELED", "COMPLETED", "FAILED"]
     assert b'name="csrf-token"' in response.content
+    # Where the page sends the operator once the session has ended (hidden until then).
+    assert f'<a href="{LOGIN}?next=/fleet">log in again</a>'.encode() in response.content
 
 
 def test_every_script_and_stylesheet_is_ours():

@@ -10,6 +10,7 @@ const DEFAULT_MAP = ""; // the map of robots whose pose names none, shown as "de
 const LIST_ROWS = 200; // mission rows shown at most; the filters find the others
 const CROWDED = 60; // more robots than this on the map shown: names only for the selected robot
 const RECONNECT_MS = 5000; // after the server refused the stream (EventSource retries the rest itself)
+const REFUSED = new Set([401, 403]); // a session that ended (or, for a write, a stale CSRF token)
 const NOTICE_MS = 10000;
 const DONE = new Set(config.done_states);
 const NODE_FIELDS = new Set(["name", "parent"]); // a node's other non-null field is its kind
@@ -27,6 +28,8 @@ let selected = null; // the robot whose panel is open
 let queueOrder = []; // its queued missions in queue order, as GET /mission listed them
 let shownTree = null; // {name, items: Map(node name -> <li>)} of the tree in the panel
 let noticeTimer = 0;
+let source = null; // the EventSource of GET /events
+let sessionEnded = false; // the API refused the session: the page stops and asks for a login
 let crowded = false; // more than CROWDED robots on the map shown
 
 const $ = (id) => document.getElementById(id);
@@ -344,9 +347,10 @@ function distanceToLeg(point, from, to) {
 // --- the stream -----------------------------------------------------------------------------------------
 
 function connect() {
+  if (sessionEnded) return;
   const url = new URL(config.events_url, location.href);
   url.searchParams.set("mission.most_recent", config.mission_snapshot);
-  const source = new EventSource(url);
+  source = new EventSource(url);
   source.addEventListener("open", () => {
     received = { robot: new Set(), mission: new Set() };
     showStream("live");
@@ -364,13 +368,41 @@ function connect() {
       const { error, detail } = JSON.parse(event.data);
       notify(`Stream: ${error}: ${detail}`, true);
     } else if (source.readyState === EventSource.CLOSED) {
-      // Refused (not a 200 event stream): EventSource gives up, the page tries again a while later.
+      // Refused (not a 200 event stream): EventSource gives up. Unless the session ended, the page tries
+      // again a while later.
       showStream("down");
-      setTimeout(connect, RECONNECT_MS);
+      sessionAlive().then((alive) => {
+        if (alive) setTimeout(connect, RECONNECT_MS);
+      });
     } else {
       showStream("reconnecting");
     }
   });
+}
+
+async function sessionAlive() {
+  // EventSource does not say why the server refused it, nor does a write's 403 say whether the session or
+  // only its CSRF token is stale: a list of no missions does. A page whose session ended stops (no retries)
+  // and asks for a new login.
+  if (sessionEnded) return false;
+  const url = new URL(config.mission_list_url, location.href);
+  url.searchParams.set("most_recent", 0);
+  try {
+    const response = await fetch(url, { credentials: "same-origin" });
+    if (!REFUSED.has(response.status)) return true;
+  } catch {
+    return true; // the server is away, not the session
+  }
+  endSession();
+  return false;
+}
+
+function endSession() {
+  if (sessionEnded) return;
+  sessionEnded = true;
+  source?.close();
+  showStream("ended");
+  $("session-ended").hidden = false;
 }
 
 function showStream(state) {
@@ -547,6 +579,7 @@ async function select(name) {
   const url = new URL(config.mission_list_url, location.href);
   url.search = new URLSearchParams({ robot: name, state: "PENDING" });
   const response = await fetch(url, { credentials: "same-origin" });
+  if (REFUSED.has(response.status)) sessionAlive();
   if (response.ok && selected === name) {
     queueOrder = (await response.json()).map((mission) => mission.name);
     changed.panel = true;
@@ -662,6 +695,7 @@ function fill(template, name) {
 async function act(url, what) {
   try {
     const response = await fetch(url, { method: "POST", headers: { "X-CSRFToken": csrfToken }, credentials: "same-origin" });
+    if (REFUSED.has(response.status) && !(await sessionAlive())) return;
     if (!response.ok) throw new Error(apiError(await response.json().catch(() => null), response.status));
     notify(`${what}: done`);
   } catch (error) {
