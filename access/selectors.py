@@ -1,11 +1,17 @@
-"""Reads of API tokens."""
+"""Reads of API tokens, and whether what a request authenticated with is still usable."""
 
 import re
+from collections.abc import Collection
+from dataclasses import dataclass
 from datetime import timedelta
 
+from django.contrib.auth import HASH_SESSION_KEY, get_user_model
+from django.contrib.sessions.models import Session
 from django.db import connection
-from django.db.models import QuerySet
+from django.db.models import Q, QuerySet
 from django.utils import timezone
+from django.utils.crypto import constant_time_compare
+from rest_framework.request import Request
 
 from access.models import ApiToken
 
@@ -44,3 +50,65 @@ def api_token_for_key(key: str) -> ApiToken | None:
         ApiToken.objects.filter(pk=token.pk).update(last_used=now)
         token.last_used = now
     return token
+
+
+@dataclass(frozen=True)
+class Credential:
+    """What a request authenticated with, to be checked again while what it opened lasts (a stream): a
+    token, or a staff user's session with the session's hash of the user's password."""
+
+    token_id: str | None = None
+    session_key: str | None = None
+    user_id: str | None = None
+    session_hash: str = ""
+
+
+def request_credential(request: Request) -> Credential | None:
+    """The request's credential; None when it needed none (FLEET_API_AUTH off)."""
+    token = request.auth
+    if isinstance(token, ApiToken):
+        return Credential(token_id=token.pk)
+    user = request.user
+    if user is not None and user.is_authenticated and request.session.session_key:
+        return Credential(
+            session_key=request.session.session_key,
+            user_id=str(user.pk),
+            session_hash=request.session.get(HASH_SESSION_KEY, ""),
+        )
+    return None
+
+
+def credentials_usable(credentials: Collection[Credential]) -> set[Credential]:
+    """Those of `credentials` that would still authenticate a request: the token not revoked or expired;
+    the session not ended or expired, its user still an active staff user whose password has not
+    changed since the login (as Django's login checks a session's hash). Three queries at most, however
+    many credentials."""
+    now = timezone.now()
+    token_ids = {credential.token_id for credential in credentials if credential.token_id}
+    usable_tokens = set(
+        ApiToken.objects.filter(pk__in=token_ids, revoked=False)
+        .filter(Q(expiry_date__isnull=True) | Q(expiry_date__gt=now))
+        .values_list("pk", flat=True)
+    )
+    sessions = [credential for credential in credentials if credential.session_key]
+    live_sessions = set(
+        Session.objects.filter(
+            session_key__in={credential.session_key for credential in sessions}, expire_date__gt=now
+        ).values_list("session_key", flat=True)
+    )
+    users = {
+        str(user.pk): user
+        for user in get_user_model().objects.filter(
+            pk__in={credential.user_id for credential in sessions}, is_active=True, is_staff=True
+        )
+    }
+    usable = {credential for credential in credentials if credential.token_id in usable_tokens}
+    for credential in sessions:
+        user = users.get(credential.user_id or "")
+        if (
+            credential.session_key in live_sessions
+            and user is not None
+            and constant_time_compare(credential.session_hash, user.get_session_auth_hash())
+        ):
+            usable.add(credential)
+    return usable

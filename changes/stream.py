@@ -20,6 +20,7 @@ from __future__ import annotations
 import asyncio
 import heapq
 import logging
+import time
 from collections import defaultdict, deque
 from collections.abc import AsyncIterator, Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -33,6 +34,7 @@ from django.db import DatabaseError, connection
 from django.db.models import Model, QuerySet
 from rest_framework.serializers import BaseSerializer
 
+from access.selectors import Credential, credentials_usable
 from changes.framing import Framing
 from changes.selectors import Span, watch_changes, watch_resume, watch_snapshot
 
@@ -169,6 +171,9 @@ class Watcher:
     # per kind; then None: its group's (Hub) are the same from there on.
     own: dict[str, LastImages] | None = None
     dropped: bool = False
+    # What the stream's request authenticated with (None: it needed nothing); the stream ends once that
+    # would no longer authenticate a request (Hub).
+    credential: Credential | None = None
 
     def deliver(self, framed: Framed, position: str) -> None:
         """Queue one read's items (the changes after `since` up to `position`); the watcher is then at
@@ -309,6 +314,7 @@ class Hub:
         self.ledger = Ledger()
         self._groups: dict[GroupKey, LastImages] = {}  # those of the watchers' groups
         self._task: asyncio.Task[None] | None = None
+        self._credentials_checked = time.monotonic()
         # One thread, one database connection: the poller's reads never wait for a request's thread.
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="watch-poller")
 
@@ -353,6 +359,32 @@ class Hub:
                 self.watchers.clear()
                 return
             self.deliver(watchers, dict(zip(keys, changes, strict=True)), position)
+            if time.monotonic() - self._credentials_checked >= settings.STREAM_CREDENTIALS_CHECK_SECONDS:
+                await self._end_unauthenticated(loop)
+
+    async def _end_unauthenticated(self, loop: asyncio.AbstractEventLoop) -> None:
+        """End the streams whose token was revoked or expired, or whose session ended (a logout, its
+        expiry, its user no longer staff): a stream is authenticated when it opens, and may stay open for
+        days. One read for all of the process's streams."""
+        self._credentials_checked = time.monotonic()
+        credentials = {watcher.credential for watcher in self.watchers if watcher.credential}
+        if not credentials:
+            return
+        try:
+            usable = await loop.run_in_executor(self._executor, credentials_usable, credentials)
+        except DatabaseError:
+            logger.warning("The streams' credentials could not be checked; retrying", exc_info=True)
+            await loop.run_in_executor(self._executor, connection.close)
+            return
+        for watcher in list(self.watchers):
+            # Only those checked: a watcher may have come meanwhile.
+            if watcher.credential in credentials and watcher.credential not in usable and not watcher.dropped:
+                watcher.drop(
+                    "not_authenticated",
+                    "The token this stream was opened with was revoked or has expired, or the session "
+                    "has ended: authenticate again and watch again.",
+                    resumable=True,
+                )
 
     def deliver(self, watchers: list[Watcher], items: dict[ReadKey, list[Item]], position: str) -> None:
         """One poll's items to each watcher, framed once per (reads, framing); then, past
@@ -410,12 +442,17 @@ HUB = Hub()
 
 
 async def watch_stream(
-    watched: tuple[Watched, ...], framing: Framing, opening: Opening
+    watched: tuple[Watched, ...], framing: Framing, opening: Opening, credential: Credential | None
 ) -> AsyncIterator[bytes]:
-    """The opening's items, then each change's, until the client goes or falls too far behind;
-    keepalives while there is nothing to send."""
+    """The opening's items, then each change's, until the client goes, falls too far behind or its
+    credential no longer authenticates; keepalives while there is nothing to send."""
     watcher = Watcher(
-        watched=watched, framing=framing, since=opening.position, ledger=HUB.ledger, own=opening.last_images()
+        watched=watched,
+        framing=framing,
+        since=opening.position,
+        ledger=HUB.ledger,
+        own=opening.last_images(),
+        credential=credential,
     )
     HUB.add(watcher)
     try:

@@ -18,6 +18,7 @@ from rest_framework.renderers import BaseRenderer
 from rest_framework.request import Request
 from rest_framework.serializers import BaseSerializer
 
+from access.selectors import request_credential
 from changes.framing import Framing, Ndjson, ServerSentEvents, event_id_span
 from changes.selectors import FeedPositionExpired, FeedPositionInvalid
 from changes.stream import Opening, Watched, resume, snapshot, watch_stream
@@ -76,7 +77,7 @@ def watch_response(request: Request, source: Source) -> HttpResponse:
                 {PUBLISHER_ID: [ErrorDetail(f"{value!r} is not a UUID.", code="invalid")]}
             ) from None
     watched, queryset = _watched(source, filters)
-    return _streaming((watched,), Ndjson(), snapshot([(watched, queryset)]))
+    return _streaming(request, (watched,), Ndjson(), snapshot([(watched, queryset)]))
 
 
 def events_response(request: Request, sources: list[Source]) -> HttpResponse:
@@ -107,7 +108,7 @@ def events_response(request: Request, sources: list[Source]) -> HttpResponse:
     watched = tuple(each for each, _ in reads)
     event_id, loc = _last_event_id(request)
     if not event_id:
-        return _streaming(watched, ServerSentEvents(), snapshot(reads))
+        return _streaming(request, watched, ServerSentEvents(), snapshot(reads))
     try:
         opening = resume(watched, event_id_span(event_id))
     except FeedPositionInvalid:
@@ -116,7 +117,7 @@ def events_response(request: Request, sources: list[Source]) -> HttpResponse:
     except FeedPositionExpired as error:
         detail = f"Cannot resume after this event ({error}): a new snapshot follows."
         opening = replace(snapshot(reads), notice=("resume_expired", detail))
-    return _streaming(watched, ServerSentEvents(), opening)
+    return _streaming(request, watched, ServerSentEvents(), opening)
 
 
 def _watched(source: Source, filters: QueryDict, *, prefix: str = "") -> tuple[Watched, QuerySet]:
@@ -146,12 +147,15 @@ def _last_event_id(request: Request) -> tuple[str, tuple[str, str]]:
     return request.query_params.get(LAST_EVENT_ID, ""), ("query", LAST_EVENT_ID)
 
 
-def _streaming(watched: tuple[Watched, ...], framing: Framing, opening: Opening) -> StreamingHttpResponse:
+def _streaming(
+    request: Request, watched: tuple[Watched, ...], framing: Framing, opening: Opening
+) -> StreamingHttpResponse:
     # The stream may stay open for hours, its changes read on the poller's connection: this request's
     # connection is let go now, not at the stream's end.
+    credential = request_credential(request)
     connection.close()
     response = StreamingHttpResponse(
-        watch_stream(watched, framing, opening), content_type=framing.content_type
+        watch_stream(watched, framing, opening, credential), content_type=framing.content_type
     )
     response["Cache-Control"] = "no-cache"
     response["X-Accel-Buffering"] = "no"  # a reverse proxy passes each event on at once

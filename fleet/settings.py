@@ -205,6 +205,9 @@ WATCH_QUEUE_LINES = env_int("FLEET_WATCH_QUEUE_LINES", 10_000)
 # Bytes that may wait for all of a process's watchers together, a change shared by several counted once:
 # past it the watchers furthest behind are told and dropped first.
 WATCH_QUEUE_BYTES = env_int("FLEET_WATCH_QUEUE_BYTES", 256 * 2**20)
+# How often an API process checks that its streams' tokens and sessions still authenticate; a stream whose
+# credential no longer does (revoked, expired, logged out) is ended.
+STREAM_CREDENTIALS_CHECK_SECONDS = env_float("FLEET_STREAM_CREDENTIALS_CHECK_SECONDS", 10.0)
 # How long the change feed keeps a change (beat trims older ones every FLEET_CHANGE_TRIM_SECONDS).
 CHANGE_RETENTION_SECONDS = env_float("FLEET_CHANGE_RETENTION_SECONDS", 600.0)
 CHANGE_TRIM_SECONDS = env_float("FLEET_CHANGE_TRIM_SECONDS", 60.0)

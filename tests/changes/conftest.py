@@ -14,6 +14,7 @@ QUEUE_LINES = 1000  # FLEET_WATCH_QUEUE_LINES of the stream server: small, so a 
 KEEPALIVE_SECONDS = 1.0  # FLEET_EVENTS_KEEPALIVE_SECONDS: keepalives come within a test's patience
 RETRY_MS = 250  # FLEET_EVENTS_RETRY_SECONDS, as the streams' retry: field says it
 API_THREADS = 2  # FLEET_API_THREADS: REST requests' threads, each keeping its database connection
+CREDENTIALS_CHECK_SECONDS = 0.5  # FLEET_STREAM_CREDENTIALS_CHECK_SECONDS: a revoked token's stream ends soon
 
 
 @pytest.fixture
@@ -25,6 +26,7 @@ def stream_server(transactional_db: None, tmp_path: Path) -> Iterator[GranianSer
         "FLEET_EVENTS_KEEPALIVE_SECONDS": str(KEEPALIVE_SECONDS),
         "FLEET_EVENTS_RETRY_SECONDS": str(RETRY_MS / 1000),
         "FLEET_API_THREADS": str(API_THREADS),
+        "FLEET_STREAM_CREDENTIALS_CHECK_SECONDS": str(CREDENTIALS_CHECK_SECONDS),
     }
     with granian_server(ASGI, log=tmp_path / "stream.log", token=token, env=env) as server:
         yield server

@@ -3,7 +3,9 @@ every change in feed order; resuming with Last-Event-ID without a gap or an even
 of a read and across a transaction that commits after a later one; the retention window; filters per kind;
 400s; authentication."""
 
+import queue
 import socket
+import time
 from urllib.parse import quote
 
 import pytest
@@ -12,9 +14,10 @@ from django.contrib.auth.models import User
 from django.db import transaction
 from django.test import Client
 
+from access.services import api_token_create, api_token_revoke
 from changes.services import changes_trim
 from missions.models import Mission
-from tests.changes.conftest import KEEPALIVE_SECONDS, RETRY_MS
+from tests.changes.conftest import CREDENTIALS_CHECK_SECONDS, KEEPALIVE_SECONDS, RETRY_MS
 from tests.database import other_connection
 from tests.granian_server import GranianServer
 from tests.watching import Event, Events
@@ -164,6 +167,60 @@ def test_events_need_credentials_a_staff_session_will_do(stream_server, watches)
             response = requests.get(url, headers=cookie, timeout=10)
             assert response.status_code == 403
             assert response.json()["detail"] == "Only staff users may use the API through a session."
+
+
+def _until_ended(stream: Events, seconds: float) -> list[Event]:
+    """The stream's events until it ends, which must be within `seconds`."""
+    events, deadline = [], time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            block = stream.next(timeout=left)
+        except queue.Empty:
+            break
+        if block is None:
+            return events
+        if block.event is not None:
+            events.append(block)
+    raise AssertionError(f"the stream did not end within {seconds} s; its events: {events}")
+
+
+def test_a_stream_ends_once_its_token_or_session_no_longer_authenticates(stream_server, api, watches):
+    """A stream is authenticated when it opens; revoking its token, logging its session out, or taking
+    its user's staff status ends it with an error (within FLEET_STREAM_CREDENTIALS_CHECK_SECONDS), and
+    nothing of later changes reaches it. Streams whose credentials still hold go on."""
+    query = "kind=robot&robot.names=ev-cred"
+    _, revoked_key = api_token_create(name="ev-revoked")
+    browsers = {}
+    for name in ("ev-logged-out", "ev-demoted", "ev-staying"):
+        browsers[name] = Client()
+        browsers[name].force_login(User.objects.create_user(name, password="secret-password", is_staff=True))
+    url = f"{stream_server.url}/events?{query}"
+    streams = {
+        "token": Events(url, {"Authorization": f"Bearer {revoked_key}"}),
+        # As a browser's EventSource: the session's cookie only.
+        **{
+            name: Events(url, {"Cookie": f"sessionid={browser.cookies['sessionid'].value}"})
+            for name, browser in browsers.items()
+        },
+        "server token": Events(url, stream_server.auth),
+    }
+    watches.extend(streams.values())
+    for stream in streams.values():
+        assert _snapshot(stream)[0] == []
+    api_token_revoke(name="ev-revoked")
+    browsers["ev-logged-out"].logout()
+    User.objects.filter(username="ev-demoted").update(is_staff=False)
+    api.post("/robot", {"name": "ev-cred"})
+    for name in ("token", "ev-logged-out", "ev-demoted"):
+        events = _until_ended(streams[name], seconds=10 * CREDENTIALS_CHECK_SECONDS)
+        # The robot's creation may or may not come before the check that ends the stream; the end does.
+        assert [event.event for event in events][-1:] == ["error"], name
+        assert events[-1].data["error"] == "not_authenticated"
+        assert [event.event for event in events[:-1]] in ([], ["robot"]), name
+    for name in ("ev-staying", "server token"):
+        event = streams[name].next_event()
+        assert (event.event, event.data.get("name")) == ("robot", "ev-cred"), (name, event)
+        assert streams[name].quiet(3 * CREDENTIALS_CHECK_SECONDS), name  # not ended: no error comes
 
 
 def test_keepalives_come_while_nothing_changes_and_carry_the_resume_id(stream_server, api, watches):
