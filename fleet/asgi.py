@@ -13,10 +13,11 @@ WSGI), but not on the same threads:
 """
 
 import asyncio
+import contextvars
+import io
 import os
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import asynccontextmanager
 from typing import IO, Any
 
 import django
@@ -59,23 +60,27 @@ class RestHandler(ApiHandler):
     disconnect meanwhile, which a view on a thread could not heed anyway (the streams, which can, keep
     Django's handler). A streamed response (a static file) is closed after it is sent, as Django does."""
 
-    async def handle(self, scope: Scope, receive: Receive, send: Any) -> None:
+    async def serve(self, scope: Scope, receive: Receive, send: Any, thread: ThreadPoolExecutor) -> None:
+        """Serve the request with `thread`, which `application` lent it. Run there in a copy of this task's
+        context, as asgiref's sync_to_async would run it, without its ThreadSensitiveContext machinery,
+        which cost a tenth of a REST request's CPU (bench/README.md)."""
         try:
-            body_file = await self.read_body(receive)
+            body = await _body(receive)
         except RequestAborted:
             return
-        set_script_prefix(get_script_prefix(scope))
+        loop = asyncio.get_running_loop()
+        respond = contextvars.copy_context().run
+        response = await loop.run_in_executor(thread, respond, self._respond, scope, io.BytesIO(body))
+        if not response.streaming:
+            await _send_whole(response, send)
+            return
         try:
-            response = await sync_to_async(self._respond, thread_sensitive=True)(scope, body_file)
-            try:
-                await self.send_response(response, send)
-            finally:
-                if response.streaming:
-                    await sync_to_async(response.close, thread_sensitive=True)()
+            await self.send_response(response, send)
         finally:
-            body_file.close()
+            await loop.run_in_executor(thread, contextvars.copy_context().run, response.close)
 
     def _respond(self, scope: Scope, body_file: IO[bytes]) -> HttpResponseBase:
+        set_script_prefix(get_script_prefix(scope))
         signals.request_started.send(sender=self.__class__, scope=scope)
         request, response = self.create_request(scope, body_file)
         if request is not None:
@@ -88,29 +93,59 @@ class RestHandler(ApiHandler):
         return response
 
 
+async def _body(receive: Receive) -> bytes:
+    """The request's body (at most FLEET_API_MAX_BODY_BYTES + 1 bytes, `_bounded`), in memory: Django's
+    handler spools it to a temporary file, which costs more than a REST body's bytes."""
+    chunks = []
+    while True:
+        message = await receive()
+        if message["type"] == "http.disconnect":
+            raise RequestAborted()
+        chunks.append(message.get("body", b""))
+        if not message.get("more_body", False):
+            return b"".join(chunks)
+
+
+async def _send_whole(response: HttpResponseBase, send: Any) -> None:
+    """A response whose content is all there, in one message after its start (Django's handler sends it
+    in pieces of its chunk size); headers and cookies as Django's handler sends them."""
+    headers = [
+        (
+            header.encode("ascii") if isinstance(header, str) else bytes(header),
+            value.encode("latin1") if isinstance(value, str) else bytes(value),
+        )
+        for header, value in response.items()
+    ]
+    headers.extend(
+        (b"Set-Cookie", cookie.output(header="").encode("ascii").strip())
+        for cookie in response.cookies.values()
+    )
+    await send({"type": "http.response.start", "status": response.status_code, "headers": headers})
+    await send({"type": "http.response.body", "body": response.content})
+
+
 django_application = ApiHandler()
 rest_application = RestHandler()
 
 
 class RequestThreads:
-    """FLEET_API_THREADS threads, each lent to one request at a time (asgiref runs a request's
-    thread-sensitive calls, hence all of Django's, on the thread of its ThreadSensitiveContext)."""
+    """FLEET_API_THREADS threads, each lent to one request at a time: a REST request runs its middleware,
+    view and response on it, as on a WSGI server's request thread (`RestHandler`)."""
 
     def __init__(self, count: int) -> None:
         self._count = count
         self._free: asyncio.Queue[ThreadPoolExecutor] | None = None
 
-    @asynccontextmanager
-    async def lend(self) -> AsyncIterator[ThreadPoolExecutor]:
+    async def borrow(self) -> ThreadPoolExecutor:
         if self._free is None:  # in the server's event loop, at the first request
             self._free = asyncio.Queue()
             for number in range(self._count):
                 self._free.put_nowait(ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"api-{number}"))
-        thread = await self._free.get()
-        try:
-            yield thread
-        finally:
-            self._free.put_nowait(thread)
+        return await self._free.get()
+
+    def give_back(self, thread: ThreadPoolExecutor) -> None:
+        assert self._free is not None
+        self._free.put_nowait(thread)
 
 
 REQUEST_THREADS = RequestThreads(settings.API_THREADS)
@@ -121,8 +156,14 @@ async def application(scope: Scope, receive: Receive, send: Any) -> None:
     if scope["type"] == "http" and scope["path"] in STREAM_PATHS:
         await STREAM_OPENINGS.run(scope, receive, send)
         return
-    async with REQUEST_THREADS.lend() as thread, ThreadSensitiveContext(executor=thread):
-        await rest_application(scope, receive, send)
+    if scope["type"] != "http":
+        await rest_application(scope, receive, send)  # Django's handler refuses it
+        return
+    thread = await REQUEST_THREADS.borrow()
+    try:
+        await rest_application.serve(scope, receive, send, thread)
+    finally:
+        REQUEST_THREADS.give_back(thread)
 
 
 def _bounded(receive: Receive) -> Receive:
