@@ -23,6 +23,7 @@ import orjson
 import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
+from django.core.management.base import CommandError
 from django.db import DatabaseError, connection
 from django.test import TransactionTestCase
 from rest_framework.test import APIClient
@@ -59,13 +60,15 @@ WORKER = [
 
 def _flush_retrying_on_deadlock(self: TransactionTestCase) -> None:
     """The flush after a test can deadlock with a step the worker is still running for that test's robot;
-    PostgreSQL then aborts one of them. The step is retried by the engine; the flush is retried here."""
+    PostgreSQL then aborts one of them. The step is retried by the engine; the flush is retried here.
+    Django's flush command reports the database's error as a CommandError caused by it."""
     for attempt in range(5):
         try:
             _flush(self)
             return
-        except DatabaseError:
-            if attempt == 4:
+        except (DatabaseError, CommandError) as error:
+            database_error = error if isinstance(error, DatabaseError) else error.__cause__
+            if attempt == 4 or not isinstance(database_error, DatabaseError):
                 raise
             time.sleep(0.5)
 
