@@ -69,15 +69,13 @@ class RestHandler(ApiHandler):
         except RequestAborted:
             return
         loop = asyncio.get_running_loop()
-        respond = contextvars.copy_context().run
-        response = await loop.run_in_executor(thread, respond, self._respond, scope, io.BytesIO(body))
-        if not response.streaming:
-            await _send_whole(response, send)
-            return
+        context = contextvars.copy_context()
+        response = await loop.run_in_executor(thread, context.run, self._respond, scope, io.BytesIO(body))
         try:
             await self.send_response(response, send)
         finally:
-            await loop.run_in_executor(thread, contextvars.copy_context().run, response.close)
+            if response.streaming:
+                await loop.run_in_executor(thread, context.run, response.close)
 
     def _respond(self, scope: Scope, body_file: IO[bytes]) -> HttpResponseBase:
         set_script_prefix(get_script_prefix(scope))
@@ -104,24 +102,6 @@ async def _body(receive: Receive) -> bytes:
         chunks.append(message.get("body", b""))
         if not message.get("more_body", False):
             return b"".join(chunks)
-
-
-async def _send_whole(response: HttpResponseBase, send: Any) -> None:
-    """A response whose content is all there, in one message after its start (Django's handler sends it
-    in pieces of its chunk size); headers and cookies as Django's handler sends them."""
-    headers = [
-        (
-            header.encode("ascii") if isinstance(header, str) else bytes(header),
-            value.encode("latin1") if isinstance(value, str) else bytes(value),
-        )
-        for header, value in response.items()
-    ]
-    headers.extend(
-        (b"Set-Cookie", cookie.output(header="").encode("ascii").strip())
-        for cookie in response.cookies.values()
-    )
-    await send({"type": "http.response.start", "status": response.status_code, "headers": headers})
-    await send({"type": "http.response.body", "body": response.content})
 
 
 django_application = ApiHandler()
