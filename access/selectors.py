@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from datetime import timedelta
 
 from django.contrib.auth import HASH_SESSION_KEY, get_user_model
+from django.contrib.auth.base_user import AbstractBaseUser
 from django.contrib.sessions.models import Session
 from django.db import connection
 from django.db.models import Q, QuerySet
@@ -80,13 +81,15 @@ def request_credential(request: Request) -> Credential | None:
 
 def credentials_usable(credentials: Collection[Credential]) -> set[Credential]:
     """Those of `credentials` that would still authenticate a request: the token not revoked or expired;
-    the session not ended or expired, its user still an active staff user whose password has not
-    changed since the login (as Django's login checks a session's hash). Three queries at most, however
-    many credentials."""
+    the session not ended or expired, its user still an active staff user (ApiAccess admits no other
+    session) whose password has not changed since the login: the session's hash checked as Django's
+    `get_user` checks it, under SECRET_KEY or one of SECRET_KEY_FALLBACKS, but without its writes (it
+    would end or re-key the operator's session). Three queries at most, however many credentials."""
     now = timezone.now()
     token_ids = {credential.token_id for credential in credentials if credential.token_id}
     usable_tokens = set(
-        ApiToken.objects.filter(pk__in=token_ids, revoked=False)
+        ApiToken.objects.get_usable_keys()
+        .filter(pk__in=token_ids)
         .filter(Q(expiry_date__isnull=True) | Q(expiry_date__gt=now))
         .values_list("pk", flat=True)
     )
@@ -105,10 +108,11 @@ def credentials_usable(credentials: Collection[Credential]) -> set[Credential]:
     usable = {credential for credential in credentials if credential.token_id in usable_tokens}
     for credential in sessions:
         user = users.get(credential.user_id or "")
-        if (
-            credential.session_key in live_sessions
-            and user is not None
-            and constant_time_compare(credential.session_hash, user.get_session_auth_hash())
-        ):
+        if credential.session_key in live_sessions and user is not None and _hash_holds(credential, user):
             usable.add(credential)
     return usable
+
+
+def _hash_holds(credential: Credential, user: AbstractBaseUser) -> bool:
+    hashes = [user.get_session_auth_hash(), *user.get_session_auth_fallback_hash()]
+    return any(constant_time_compare(credential.session_hash, each) for each in hashes)

@@ -376,7 +376,7 @@ class Hub:
             logger.warning("The streams' credentials could not be checked; retrying", exc_info=True)
             await loop.run_in_executor(self._executor, connection.close)
             return
-        for watcher in list(self.watchers):
+        for watcher in self.watchers:
             # Only those checked: a watcher may have come meanwhile.
             if watcher.credential in credentials and watcher.credential not in usable and not watcher.dropped:
                 watcher.drop(

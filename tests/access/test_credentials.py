@@ -51,6 +51,18 @@ def test_sessions_logged_out_expired_demoted_deactivated_or_repassworded_no_long
     assert credentials_usable(set(sessions.values())) == {sessions["kept"]}
 
 
+def test_a_session_of_a_rotated_secret_key_holds_while_the_old_key_is_a_fallback(settings):
+    """As Django's own login check: rotating SECRET_KEY with the old one in SECRET_KEY_FALLBACKS keeps the
+    sessions logged in; without the fallback they end."""
+    session = _session("rotated")
+    old_key = settings.SECRET_KEY
+    settings.SECRET_KEY = "a-new-secret-key-" + "x" * 50
+    settings.SECRET_KEY_FALLBACKS = [old_key]
+    assert credentials_usable({session}) == {session}
+    settings.SECRET_KEY_FALLBACKS = []
+    assert credentials_usable({session}) == set()
+
+
 def test_many_credentials_are_checked_in_three_queries(django_assert_num_queries):
     credentials = {Credential(token_id=api_token_create(name=f"many-{i}")[0].pk) for i in range(5)}
     credentials |= {_session(f"many-{i}") for i in range(5)}
