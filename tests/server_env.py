@@ -8,6 +8,7 @@ SERVER_ENV = {
     "FLEET_BRIDGE_FLUSH_SECONDS": "0.2",
     "FLEET_NOTIFY_BACKOFF_SECONDS": "0.1",
     "FLEET_VISIBILITY_TIMEOUT": "5",
+    "FLEET_STREAM_CREDENTIALS_CHECK_SECONDS": "1.0",
     "FLEET_LOG_LEVEL": "INFO",
     "FLEET_SECRET_KEY": "test-server-secret-key-not-for-production",
 }

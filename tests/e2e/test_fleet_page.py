@@ -253,17 +253,16 @@ def expect_login_prompt(fleet: FleetPage) -> None:
     expect(fleet.page.locator("#stream")).to_have_attribute("data-stream", "ended")
 
 
-def test_a_stream_refused_after_a_logout_asks_for_a_login_and_is_not_retried(fleet: FleetPage, stack: Stack):
+def test_a_stream_refused_after_a_logout_asks_for_a_login_and_is_not_retried(fleet: FleetPage):
     opened = stream_openings(fleet)
     with fleet.page.context.expect_page() as tab:  # another tab of the same browser: the same session
         fleet.page.evaluate("() => { window.open('/admin/'); }")
     other = tab.value
     other.get_by_role("button", name="Log out").click()
     expect(other.locator("#content")).to_contain_text("Logged out")
-    # A stream is authenticated when it opens: the open one ends with the API process, and EventSource's
-    # reconnection is refused.
-    stack.processes["api"].restart()
 
+    # The server ends the open stream once it finds the session gone (FLEET_STREAM_CREDENTIALS_CHECK_SECONDS),
+    # and EventSource's reconnection is refused.
     expect_login_prompt(fleet)
     refused = len(opened)
     assert refused >= 1
@@ -282,5 +281,8 @@ def test_an_api_call_refused_for_an_ended_session_asks_for_a_login(fleet: FleetP
     fleet.marker(robot).click()  # the panel asks GET /mission for the robot's queue: 401
 
     expect_login_prompt(fleet)
+    # The stream is closed and not opened again (the server may have ended it first, and EventSource tried
+    # once, refused).
+    tried = len(opened)
     fleet.page.wait_for_timeout(3_000)  # more than the stream's retry (FLEET_EVENTS_RETRY_SECONDS)
-    assert opened == []  # the stream was closed, not retried
+    assert len(opened) == tried <= 1
