@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import django
 import requests
@@ -76,7 +77,7 @@ class Run:
     events: int = 0
 
 
-def _port() -> int:
+def free_port() -> int:
     import socket
 
     with socket.socket() as probe:
@@ -84,13 +85,22 @@ def _port() -> int:
         return probe.getsockname()[1]
 
 
+class Server(NamedTuple):
+    url: str
+    pid: int  # also its process group's: the server's workers are in it
+
+
 @contextmanager
-def _server(command_for: Callable[[int], list[str]], env: dict[str, str], log: Path) -> Iterator[str]:
-    port = _port()
+def served(
+    command_for: Callable[[int], list[str]], env: dict[str, str], log: Path, *, cwd: Path = ROOT
+) -> Iterator[Server]:
+    """The server `command_for(port)` starts (from `cwd`) on a free port, once it answers GET /health;
+    stopped, with its workers, at the end."""
+    port = free_port()
     command = command_for(port)
     with log.open("ab") as output:
         process = subprocess.Popen(
-            command, cwd=ROOT, env=env, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
+            command, cwd=cwd, env=env, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
         )
     url = f"http://127.0.0.1:{port}"
     try:
@@ -104,7 +114,7 @@ def _server(command_for: Callable[[int], list[str]], env: dict[str, str], log: P
             if process.poll() is not None or time.monotonic() > deadline:
                 raise RuntimeError(f"{command} did not start; see {log}")
             time.sleep(0.1)
-        yield url
+        yield Server(url, process.pid)
     finally:
         os.killpg(process.pid, signal.SIGTERM)
         process.wait(timeout=30)
@@ -150,7 +160,7 @@ def _measure(
     robots = [f"{PREFIX}{i}" for i in range(args.robots)]
     with ExitStack() as stack:
         urls = [
-            stack.enter_context(_server(command_for, env, logs / f"{layout}-{n}.log"))
+            stack.enter_context(served(command_for, env, logs / f"{layout}-{n}.log")).url
             for n, command_for in enumerate(LAYOUTS[layout])
         ]
         api, streams = urls[0], urls[-1]

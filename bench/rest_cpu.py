@@ -8,7 +8,7 @@ sides on the same machine speed: a day's drift of up to 2x, and the minute-to-mi
 VM, fall on both alike. No worker runs: the missions queue behind each other (a robot's first one asks
 for a step, which waits in Redis). Run on a database of its own, migrated, with nothing else running:
 
-    FLEET_DB_NAME=md_rest_cpu FLEET_REDIS_URL=redis://127.0.0.1:6379/4 \\
+    FLEET_SECRET_KEY=... FLEET_DB_NAME=md_rest_cpu FLEET_REDIS_URL=redis://127.0.0.1:6379/4 \\
         .venv/bin/python -m bench.rest_cpu --a . --b /tmp/md-base --rounds 20
 
 `--b` is another checkout (e.g. `git archive <rev> | tar -x -C /tmp/md-base` with a link to this
@@ -20,11 +20,9 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import subprocess
 import time
-from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 from pathlib import Path
 
 import django
@@ -34,62 +32,23 @@ os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
 django.setup()
 
 from access.services import api_token_create  # noqa: E402
-from bench.api_layout import _port  # noqa: E402
-from bench.measure import cpu_speed_ms  # noqa: E402
+from bench.api_layout import Server, served  # noqa: E402
+from bench.measure import CpuMeter, cpu_speed_ms, usage  # noqa: E402
 from bench.suite import api_command  # noqa: E402
 from missions.models import Mission  # noqa: E402
 
 PREFIX = "rest-cpu-"
-TICKS = os.sysconf("SC_CLK_TCK")
 
 
-def _group_cpu_seconds(group: int) -> float:
-    """CPU seconds (user + system) of every live process in process group `group`."""
-    total = 0
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            fields = (entry / "stat").read_text().rpartition(")")[2].split()
-        except OSError:
-            continue  # gone meanwhile
-        if int(fields[2]) == group:  # pgrp; fields[0] is the state (field 3 of stat)
-            total += int(fields[11]) + int(fields[12])  # utime, stime
-    return total / TICKS
+def cpu_meter(servers: dict[str, Server]) -> CpuMeter:
+    """`bench.measure`'s meter of each side's server: its processes are those serving its port (the
+    granian workers are forks, with its command line)."""
+    return CpuMeter(
+        {side: rf"granian.* --port {server.url.rpartition(':')[2]} " for side, server in servers.items()}
+    )
 
 
-@contextmanager
-def _server(tree: Path, log: Path) -> Iterator[tuple[str, int]]:
-    port = _port()
-    env = {**os.environ, "PYTHONPATH": str(tree)}
-    with log.open("ab") as output:
-        process = subprocess.Popen(
-            api_command(port),
-            cwd=tree,
-            env=env,
-            stdout=output,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if requests.get(f"{url}/health", timeout=5).ok:
-                    break
-            except requests.ConnectionError:
-                pass
-            if process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"the API of {tree} did not start; see {log}")
-            time.sleep(0.1)
-        yield url, process.pid
-    finally:
-        os.killpg(process.pid, 15)
-        process.wait(timeout=30)
-
-
-def _round(
+def request_round(
     url: str, headers: dict[str, str], clients: int, requests_per_client: int, tag: str, get: bool
 ) -> None:
     tree = [{"name": "go", "route": {"waypoints": [{"x": 1, "y": 1}]}}]
@@ -130,18 +89,22 @@ def main() -> None:
     cpu: dict[str, list[float]] = {"a": [], "b": []}
     calibration = cpu_speed_ms()
     with ExitStack() as stack:
-        servers = {
-            side: stack.enter_context(_server(tree.resolve(), args.logs / f"{side}.log"))
-            for side, tree in (("a", args.a), ("b", args.b))
-        }
-        for side, (url, _) in servers.items():
-            _round(url, headers, args.clients, per_client, f"{side}-warm", args.get)
+        servers = {}
+        for side, tree in (("a", args.a), ("b", args.b)):
+            env = {**os.environ, "PYTHONPATH": str(tree.resolve())}
+            log = args.logs / f"{side}.log"
+            servers[side] = stack.enter_context(served(api_command, env, log, cwd=tree.resolve()))
+        for side, server in servers.items():
+            request_round(server.url, headers, args.clients, per_client, f"{side}-warm", args.get)
+        meter = cpu_meter(servers)
         for number in range(args.rounds):
             for side in ("a", "b") if number % 2 == 0 else ("b", "a"):
-                url, group = servers[side]
-                before = _group_cpu_seconds(group)
-                _round(url, headers, args.clients, per_client, f"{side}-{number}", args.get)
-                cpu[side].append((_group_cpu_seconds(group) - before) * 1000 / (per_client * args.clients))
+                before, started = meter.snapshot(), time.monotonic()
+                request_round(
+                    servers[side].url, headers, args.clients, per_client, f"{side}-{number}", args.get
+                )
+                spent = usage(before, meter.snapshot(), time.monotonic() - started)[side]["cpu_seconds"]
+                cpu[side].append(spent * 1000 / (per_client * args.clients))
     Mission.objects.filter(name__startswith=PREFIX).delete()
     what = "GET /robot" if args.get else "POST /mission"
     print(
