@@ -112,16 +112,16 @@ WSGI_APPLICATION = "fleet.wsgi.application"
 
 DATABASES = {
     "default": {
-        "ENGINE": "django.db.backends.postgresql",
+        "ENGINE": "fleet.postgresql",
         "NAME": env_str("FLEET_DB_NAME", "mission_dispatch"),
         "USER": env_str("FLEET_DB_USER", "postgres"),
         "PASSWORD": env_str("FLEET_DB_PASSWORD", ""),
         "HOST": env_str("FLEET_DB_HOST", "127.0.0.1"),
         "PORT": env_int("FLEET_DB_PORT", 5432),
         # Persistent connections: no connection setup per request or per task. Each API request checks
-        # its connection first, so a PostgreSQL restart never fails a request once the server is back;
-        # the hot loops (bridge, steps, tasks) skip that query and replace a connection only after it
-        # failed (`fleet.db.drop_broken_connections`).
+        # its connection first (without a query unless the server sent something: `fleet.postgresql`),
+        # so a PostgreSQL restart never fails a request once the server is back; the hot loops (bridge,
+        # steps, tasks) replace a connection only after it failed (`fleet.db.drop_broken_connections`).
         "CONN_MAX_AGE": None,
         "CONN_HEALTH_CHECKS": True,
         # Server-side binding lets psycopg prepare the hot statements: PostgreSQL plans them once.

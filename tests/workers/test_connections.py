@@ -1,7 +1,9 @@
 """Database connections after PostgreSQL dropped them (a restart, a failover): the API's requests check
-theirs first, the hot loops replace theirs after its first failure (`fleet.db.drop_broken_connections`)."""
+theirs first (`fleet.postgresql`), the hot loops replace theirs after its first failure
+(`fleet.db.drop_broken_connections`)."""
 
 import asyncio
+import time
 
 import pytest
 from celery.signals import task_prerun
@@ -20,6 +22,33 @@ def drop_backend() -> None:
     pid = connection.connection.info.backend_pid
     with other_connection() as other:
         other.execute("SELECT pg_terminate_backend(%s)", [pid])
+
+
+def test_checking_an_idle_connection_sends_the_server_nothing() -> None:
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT 'the last statement'")
+
+    assert connection.is_usable()
+
+    with other_connection() as other:
+        (query,) = other.execute(
+            "SELECT query FROM pg_stat_activity WHERE pid = %s", [connection.connection.info.backend_pid]
+        ).fetchone()
+    assert query == "SELECT 'the last statement'"
+
+
+def test_a_connection_the_server_ended_is_found_unusable() -> None:
+    Robot.objects.count()
+    drop_backend()
+
+    deadline = time.monotonic() + 5  # pg_terminate_backend only signals the server process
+    while connection.is_usable():
+        assert time.monotonic() < deadline, "the ended connection still counts as usable"
+        time.sleep(0.05)
+
+    connection.close_if_unusable_or_obsolete()  # what a request's start and first query do
+    connection.close_if_health_check_failed()
+    assert Robot.objects.count() >= 0
 
 
 def test_a_dropped_connection_fails_once_then_is_replaced_before_the_next_task() -> None:
