@@ -50,6 +50,15 @@ def test_steps_go_to_the_steps_queue_a_task_per_so_many_robots(names: list[str])
     assert step_tasks(names) == [names[start : start + size] for start in range(0, len(names), size)]
 
 
+def test_a_step_task_shows_celerys_tools_its_robots(names: list[str]) -> None:
+    steps.request_steps(names[:2], at=1234.5)
+
+    queued = livestate.client().lrange(settings.STEP_QUEUE, 0, -1)
+    (message,) = [message for message in queued if _robots_of(message) == names[:2]]
+    headers = orjson.loads(message)["headers"]
+    assert (headers["argsrepr"], headers["kwargsrepr"]) == (repr((names[:2], 1234.5)), "{}")
+
+
 def test_a_robot_whose_step_is_queued_is_not_queued_again_until_its_step_reads_its_state(
     names: list[str],
 ) -> None:
