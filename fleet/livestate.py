@@ -5,7 +5,6 @@ PostgreSQL, so the database sees a write only when something a user or the engin
 """
 
 import hashlib
-import os
 import threading
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -15,6 +14,7 @@ from typing import Any, NamedTuple
 import redis
 from django.conf import settings
 
+from fleet import redis_wire
 from missions.dispatch import HeldOrder, StateDigest
 
 PREFIX = "fleet"
@@ -97,7 +97,7 @@ _UNCLAIM_SHA = hashlib.sha1(_UNCLAIM.encode()).hexdigest()
 REPLAYED, STALE, UNCHANGED, CHANGED = -1, 0, 1, 2
 NEWEST = 1  # an `order_message` result: the message is the newest of its topic
 
-Command = tuple[Any, ...]  # a Redis command: its name, then its arguments
+Command = redis_wire.Command  # a Redis command: its name, then its arguments
 
 
 @dataclass(frozen=True)
@@ -185,47 +185,8 @@ def execute(pipe: redis.client.Pipeline) -> list[Any]:
 
 def round_trip(commands: list[Command]) -> list[Any]:
     """Send `commands` at once on this thread's connection and read their replies, an error reply in its
-    place.
-
-    redis-py 8's pipeline and pool spend as much CPU per round trip on their bookkeeping (retry closures,
-    observability hooks, the pool's checkout with its readiness poll, response callbacks) as the round
-    trip's own work (bench/README.md), and the bridge and every step make round trips all the time. A
-    connection error is tried once more on a new connection, as redis-py would (a Redis restart leaves
-    connections dead)."""
-    connection = _thread_connection()
-    try:
-        try:
-            return _send_and_read(connection, commands)
-        except (redis.exceptions.ConnectionError, redis.exceptions.TimeoutError):
-            connection.disconnect()
-            return _send_and_read(connection, commands)  # connects again
-    except BaseException:
-        connection.disconnect()  # replies may be left unread: the connection must not be used again
-        raise
-
-
-_thread_local = threading.local()
-
-
-def _thread_connection() -> redis.connection.AbstractConnection:
-    """This thread's own connection to `client()`'s Redis; a forked child makes its own, and so does a
-    thread whose process was pointed at another Redis (tests with a private one)."""
-    pool = client().connection_pool
-    owned = getattr(_thread_local, "owned", None)
-    if owned is None or owned[0] != os.getpid() or owned[1] is not pool:
-        owned = _thread_local.owned = (os.getpid(), pool, pool.connection_class(**pool.connection_kwargs))
-    return owned[2]
-
-
-def _send_and_read(connection: redis.connection.AbstractConnection, commands: list[Command]) -> list[Any]:
-    connection.send_packed_command(connection.pack_commands(commands))
-    replies: list[Any] = []
-    for _ in commands:
-        try:
-            replies.append(connection.read_response())
-        except redis.exceptions.ResponseError as error:
-            replies.append(error)
-    return replies
+    place (`fleet.redis_wire`)."""
+    return redis_wire.round_trip(client().connection_pool, commands)
 
 
 def stored(result: list[Any]) -> Stored:

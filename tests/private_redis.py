@@ -83,8 +83,7 @@ def live_state_in(url: str) -> Iterator[None]:
 
     def switch(to: str) -> None:
         settings.REDIS_URL = to
-        livestate._cached_client.cache_clear()
-        livestate._thread_local.__dict__.clear()
+        livestate._cached_client.cache_clear()  # a new pool: every thread makes a new connection to it
 
     switch(url)
     try:

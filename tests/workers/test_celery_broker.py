@@ -1,5 +1,7 @@
 """The Celery worker against the real Redis broker: what kombu does when Redis drops its connection."""
 
+import uuid
+
 import kombu
 import pytest
 import redis
@@ -44,3 +46,35 @@ def test_a_channel_publishes_and_acknowledges_through_one_client_per_pool() -> N
         with channel.conn_or_acquire() as third:
             assert third is not first
             assert third.connection_pool is channel.pool
+
+
+def test_a_delivered_task_waits_in_redis_until_acknowledged_and_can_be_delivered_again_from_there() -> None:
+    """kombu's acknowledgement emulation as fleet.broker's QoS writes it: a delivered message is kept in
+    Redis (what a killed worker's tasks are delivered again from) until it is acknowledged."""
+    queue = f"test-qos-{uuid.uuid4().hex[:8]}"
+    broker = kombu.Connection(settings.CELERY_BROKER_URL, transport=settings.CELERY_BROKER_TRANSPORT)
+    with broker as connection, connection.SimpleQueue(queue) as simple:
+        qos = simple.channel.qos
+        assert type(qos).__module__ == "fleet.broker"
+        redis_client = simple.channel.client
+
+        def kept(tag: str) -> tuple[bool, bool]:
+            return (
+                redis_client.hexists(qos.unacked_key, tag),
+                redis_client.zscore(qos.unacked_index_key, tag) is not None,
+            )
+
+        try:
+            simple.put({"robots": ["r1"]})
+            first = simple.get(timeout=5)
+            assert kept(first.delivery_tag) == (True, True)
+
+            qos.restore_by_tag(first.delivery_tag)  # as after a worker was killed
+            again = simple.get(timeout=5)
+            assert again.payload == {"robots": ["r1"]}
+
+            again.ack()
+            assert kept(again.delivery_tag) == (False, False)
+            assert redis_client.llen(queue) == 0
+        finally:
+            simple.channel.queue_delete(queue)
