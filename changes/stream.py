@@ -44,6 +44,9 @@ LAST_IMAGES = 100_000  # objects per group of watchers whose last image is kept 
 # Bytes a stream writes at once at most (whole items; one larger item alone): the HTTP server holds up to
 # 32 writes per stream that its client has not read yet (granian's channel), so this bounds that too.
 WRITE_BYTES = 64 * 1024
+# How often the hub looks for quiet streams that are due a keepalive (SSE): a keepalive comes up to this
+# much later than FLEET_EVENTS_KEEPALIVE_SECONDS after a stream's last write.
+KEEPALIVE_CHECK_SECONDS = 1.0
 
 QueryFor = Callable[[], QuerySet]  # the watcher's filtered queryset, built anew for each read
 
@@ -174,6 +177,7 @@ class Watcher:
     # What the stream's request authenticated with (None: it needed nothing); the stream ends once that
     # would no longer authenticate a request (Hub).
     credential: Credential | None = None
+    wrote_at: float = field(default_factory=time.monotonic)  # when the stream last had something to write
 
     def deliver(self, framed: Framed, position: str) -> None:
         """Queue one read's items (the changes after `since` up to `position`); the watcher is then at
@@ -205,16 +209,25 @@ class Watcher:
         while self.queue:
             self._took(self.queue.popleft())
 
+    def keep_alive(self, now: float) -> None:
+        """Queue a keepalive if the framing has them and the stream has been quiet for its interval.
+
+        The hub asks every watcher once a KEEPALIVE_CHECK_SECONDS: a timeout on each wait for changes cost
+        every wake-up of every stream a task and a timer (twice a plain wait's CPU), and hundreds of
+        streams left thousands of cancelled timers in the event loop's heap."""
+        interval = self.framing.keepalive_seconds
+        if interval is None or self.queue or self.dropped or now - self.wrote_at < interval:
+            return
+        # Nothing waits: the client has had every change up to the watcher's position.
+        self._put(self.framing.keepalive(self.since), 0)
+
     async def take(self) -> list[bytes | None]:
-        """What waits, up to WRITE_BYTES (after a wait for something, keepalives meanwhile): chunks, then
-        None if the stream ends."""
+        """What waits, up to WRITE_BYTES (after a wait for something): chunks, then None if the stream
+        ends."""
         if not self.queue:
             self.arrived.clear()
-            try:
-                await asyncio.wait_for(self.arrived.wait(), self.framing.keepalive_seconds)
-            except TimeoutError:
-                # Nothing waits: the client has had every change up to the watcher's position.
-                return [self.framing.keepalive(self.since)]
+            await self.arrived.wait()
+        self.wrote_at = time.monotonic()
         taken: list[bytes | None] = []
         size = 0
         while self.queue:
@@ -314,14 +327,18 @@ class Hub:
         self.ledger = Ledger()
         self._groups: dict[GroupKey, LastImages] = {}  # those of the watchers' groups
         self._task: asyncio.Task[None] | None = None
+        self._keepalive_task: asyncio.Task[None] | None = None
         self._credentials_checked = time.monotonic()
         # One thread, one database connection: the poller's reads never wait for a request's thread.
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="watch-poller")
 
     def add(self, watcher: Watcher) -> None:
         self.watchers.add(watcher)
+        loop = asyncio.get_running_loop()
         if self._task is None or self._task.done():
-            self._task = asyncio.get_running_loop().create_task(self._poll_forever())
+            self._task = loop.create_task(self._poll_forever())
+        if self._keepalive_task is None or self._keepalive_task.done():
+            self._keepalive_task = loop.create_task(self._keep_alive_forever())
 
     def remove(self, watcher: Watcher) -> None:
         self.watchers.discard(watcher)
@@ -361,6 +378,15 @@ class Hub:
             self.deliver(watchers, dict(zip(keys, changes, strict=True)), position)
             if time.monotonic() - self._credentials_checked >= settings.STREAM_CREDENTIALS_CHECK_SECONDS:
                 await self._end_unauthenticated(loop)
+
+    async def _keep_alive_forever(self) -> None:
+        """Keepalives for quiet streams, apart from the poller: they go on while a read of the feed waits
+        for PostgreSQL."""
+        while self.watchers:
+            await asyncio.sleep(KEEPALIVE_CHECK_SECONDS)
+            now = time.monotonic()
+            for watcher in self.watchers:
+                watcher.keep_alive(now)
 
     async def _end_unauthenticated(self, loop: asyncio.AbstractEventLoop) -> None:
         """End the streams whose token was revoked or expired, or whose session ended (a logout, its

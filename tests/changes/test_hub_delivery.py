@@ -7,6 +7,7 @@ import asyncio
 
 import orjson
 import pytest
+from pytest_django.fixtures import Settings
 
 from changes.framing import Framing, Ndjson, ServerSentEvents
 from changes.stream import Hub, Item, Opening, Watched, Watcher
@@ -211,3 +212,55 @@ def test_past_the_lines_bound_a_watcher_is_dropped_with_a_new_snapshot_to_come(s
     if isinstance(framing, ServerSentEvents):
         assert taken[0].startswith(b"id: \n")  # not resumable: the reconnection asks for a snapshot
     assert hub.ledger.bytes == 0
+
+
+def test_a_quiet_event_stream_gets_a_keepalive_with_its_position_once_its_interval_passed(
+    settings: Settings,
+) -> None:
+    settings.EVENTS_KEEPALIVE_SECONDS = 15.0
+    hub, watched = Hub(), _watched()
+    sse, ndjson = _watcher(hub, watched, ServerSentEvents()), _watcher(hub, watched)
+    quiet_since = sse.wrote_at
+
+    for watcher in (sse, ndjson):
+        watcher.keep_alive(quiet_since + 14.9)
+    assert not sse.queue
+
+    for watcher in (sse, ndjson):
+        watcher.keep_alive(quiet_since + 15.0)
+    assert _taken(sse) == [b": keepalive\nid: 5:5:\n\n"]  # everything up to its position delivered
+    assert not ndjson.queue  # NDJSON has no keepalives
+
+    sse.keep_alive(sse.wrote_at + 1.0)  # the interval counts from the keepalive written
+    assert not sse.queue
+
+
+def test_a_stream_with_something_to_write_gets_no_keepalive(settings: Settings) -> None:
+    settings.EVENTS_KEEPALIVE_SECONDS = 15.0
+    hub, watched = Hub(), _watched()
+    sse = _watcher(hub, watched, ServerSentEvents())
+    _poll(hub, [sse], {watched: [_item(11, "r1", 50)]}, POSITION)
+
+    sse.keep_alive(sse.wrote_at + 60)
+
+    assert len(sse.queue) == 1 and b"keepalive" not in sse.queue[0][0]
+
+
+def test_waiting_for_changes_schedules_no_timer() -> None:
+    """A timeout on every stream's every wait cost a task and a timer per wake-up; the hub's one loop
+    sends the keepalives instead."""
+    hub, watched = Hub(), _watched()
+    sse = _watcher(hub, watched, ServerSentEvents())
+
+    async def wait_then_deliver() -> tuple[int, list[bytes | None]]:
+        loop = asyncio.get_running_loop()
+        waiting = loop.create_task(sse.take())
+        await asyncio.sleep(0)  # the watcher now waits
+        timers = len(loop._scheduled)  # type: ignore[attr-defined]
+        _poll(hub, [sse], {watched: [_item(11, "r1", 50)]}, POSITION)
+        return timers, await waiting
+
+    timers, taken = asyncio.run(wait_then_deliver())
+
+    assert timers == 0
+    assert taken[0].count(b"event: robot\n") == 1
