@@ -21,9 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import statistics
-import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -41,6 +39,7 @@ django.setup()
 
 from access.services import api_token_create  # noqa: E402
 from bench.measure import CALIBRATION_ITERATIONS, _calibration_work, latency_summary  # noqa: E402
+from bench.processes import running  # noqa: E402
 from bench.suite import api_command, granian  # noqa: E402
 from changes.models import Change  # noqa: E402
 from missions.models import Mission  # noqa: E402
@@ -94,16 +93,13 @@ class Server(NamedTuple):
 def served(
     command_for: Callable[[int], list[str]], env: dict[str, str], log: Path, *, cwd: Path = ROOT
 ) -> Iterator[Server]:
-    """The server `command_for(port)` starts (from `cwd`) on a free port, once it answers GET /health;
-    stopped, with its workers, at the end."""
+    """The server `command_for(port)` starts from source tree `cwd` (`bench.processes.running`, its
+    output in `log`) on a free port, once it answers GET /health; stopped, with its workers, at the end."""
     port = free_port()
     command = command_for(port)
-    with log.open("ab") as output:
-        process = subprocess.Popen(
-            command, cwd=cwd, env=env, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
-        )
     url = f"http://127.0.0.1:{port}"
-    try:
+    with running({log.stem: command}, cwd, env, log.parent) as started:
+        process = started[log.stem]
         deadline = time.monotonic() + 60
         while True:
             try:
@@ -115,9 +111,6 @@ def served(
                 raise RuntimeError(f"{command} did not start; see {log}")
             time.sleep(0.1)
         yield Server(url, process.pid)
-    finally:
-        os.killpg(process.pid, signal.SIGTERM)
-        process.wait(timeout=30)
 
 
 def _stream_reader(url: str, headers: dict[str, str], counted: list[int], stop: threading.Event) -> None:

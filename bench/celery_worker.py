@@ -19,9 +19,7 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
-import signal
 import statistics
-import subprocess
 import sys
 import time
 import uuid
@@ -35,7 +33,8 @@ os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
 django.setup()
 
 from bench.celery_tasks import WAIT_TASK  # noqa: E402
-from bench.measure import CpuMeter, cpu_speed_ms, usage  # noqa: E402
+from bench.measure import CpuMeter, cpu_speed_ms, interleaved  # noqa: E402
+from bench.processes import running  # noqa: E402
 from bench.suite import CELERY  # noqa: E402
 from fleet import livestate  # noqa: E402
 from fleet.celery import app  # noqa: E402
@@ -59,24 +58,16 @@ def worker_command(queue: str, options: str) -> list[str]:
 
 
 @contextmanager
-def worker(queue: str, options: str, log: Path, tree: Path = ROOT) -> Iterator[None]:
-    """A worker of `queue` with `options`, run from source tree `tree`, stopped at the end."""
-    env = {**os.environ, "PYTHONPATH": str(tree)}
-    with log.open("ab") as output:
-        process = subprocess.Popen(
-            worker_command(queue, options), cwd=tree, env=env, stdout=output, stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )  # fmt: skip
-    try:
+def worker(queue: str, options: str, logs: Path, tree: Path = ROOT) -> Iterator[None]:
+    """A worker of `queue` with `options`, run from source tree `tree`, stopped (its queue deleted) at the
+    end; its output in `logs/<queue>.log`."""
+    with running({queue: worker_command(queue, options)}, tree, os.environ, logs):
         yield
-    finally:
-        os.killpg(process.pid, signal.SIGTERM)
-        process.wait(timeout=30)
-        app.connection_for_write().default_channel.queue_delete(queue)
+    app.connection_for_write().default_channel.queue_delete(queue)
 
 
-def task_round(queue: str, tasks: int, wait_ms: float, timeout: float = 120) -> float:
-    """Send `tasks` tasks to `queue` at once and wait until all are done; the round's wall seconds."""
+def task_round(queue: str, tasks: int, wait_ms: float, timeout: float = 120) -> None:
+    """Send `tasks` tasks to `queue` at once and wait until all are done."""
     counter = f"bench:celery-worker:{queue}"
     redis = livestate.client()
     redis.delete(counter)
@@ -89,7 +80,6 @@ def task_round(queue: str, tasks: int, wait_ms: float, timeout: float = 120) -> 
             raise RuntimeError(f"{queue}: {redis.get(counter)} of {tasks} tasks done in {timeout} s")
         time.sleep(0.005)
     redis.delete(counter)
-    return time.monotonic() - began
 
 
 def measure(
@@ -99,22 +89,22 @@ def measure(
     task (rounds interleaved)."""
     run = uuid.uuid4().hex[:8]
     queues = {name: f"bench-{run}-{index}" for index, name in enumerate(configurations)}
-    figures: dict[str, dict[str, list[float]]] = {name: {"cpu": [], "wall": []} for name in configurations}
     meter = CpuMeter({name: rf"-Q {queue} " for name, queue in queues.items()})
     with ExitStack() as stack:
-        for index, (name, (options, tree)) in enumerate(configurations.items()):
-            stack.enter_context(worker(queues[name], options, logs / f"{index}.log", tree))
+        for name, (options, tree) in configurations.items():
+            stack.enter_context(worker(queues[name], options, logs, tree))
         for name in configurations:  # up, and past its first tasks
             task_round(queues[name], tasks, wait_ms, timeout=120)
-        order = list(configurations)
-        for number in range(rounds):
-            for name in order if number % 2 == 0 else order[::-1]:
-                before = meter.snapshot()
-                wall = task_round(queues[name], tasks, wait_ms)
-                spent = usage(before, meter.snapshot(), wall)[name]["cpu_seconds"]
-                figures[name]["cpu"].append(spent * 1000 / tasks)
-                figures[name]["wall"].append(wall * 1000 / tasks)
-    return figures
+        spent = interleaved(
+            list(configurations), rounds, meter, lambda name, _: task_round(queues[name], tasks, wait_ms)
+        )
+    return {
+        name: {
+            "cpu": [cpu * 1000 / tasks for cpu, _ in each],
+            "wall": [wall * 1000 / tasks for _, wall in each],
+        }
+        for name, each in spent.items()
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -29,15 +29,13 @@ import json
 import os
 import re
 import secrets
-import signal
 import statistics
 import subprocess
 import sys
 import threading
 import time
 import uuid
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -46,6 +44,7 @@ import orjson
 import paho.mqtt.client as mqtt
 
 from bench.measure import cpu_speed_ms
+from bench.processes import running
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV_BIN = Path(sys.executable).parent
@@ -69,33 +68,6 @@ def server_processes(code: Path, schedule: Path) -> dict[str, list[str]]:
         "worker": [celery, "-A", "fleet", "worker", "-Q", "steps,notify", *worker, "-n", "drive-on@%h"],
         "beat": [celery, "-A", "fleet", "beat", "--schedule", str(schedule)],
     }
-
-
-@contextmanager
-def running(commands: dict[str, list[str]], code: Path, env: dict[str, str], logs: Path) -> Iterator[None]:
-    logs.mkdir(parents=True, exist_ok=True)
-    started = {
-        name: subprocess.Popen(
-            argv,
-            cwd=code,
-            env=env,
-            stdout=(logs / f"{name}.log").open("wb"),
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
-        for name, argv in commands.items()
-    }
-    try:
-        yield
-        exited = [name for name, process in started.items() if process.poll() is not None]
-        if exited:
-            raise RuntimeError(f"processes exited during the run: {exited}; see {logs}")
-    finally:
-        for process in started.values():
-            if process.poll() is None:
-                os.killpg(process.pid, signal.SIGTERM)
-        for process in started.values():
-            process.wait(timeout=60)
 
 
 class States:

@@ -8,7 +8,7 @@ import os
 import platform
 import re
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -151,6 +151,23 @@ def usage(before: Snapshot, after: Snapshot, seconds: float) -> dict[str, dict[s
             "processes": len(pids),
         }
     return report
+
+
+def interleaved(
+    sides: Sequence[str], rounds: int, meter: CpuMeter, run_round: Callable[[str, int], object]
+) -> dict[str, list[tuple[float, float]]]:
+    """Per side, per round: the CPU seconds of the side's processes (`meter`'s group of that name) and the
+    wall seconds of `run_round(side, round number)`. Rounds go side after side, the order reversed every
+    other round, so that a machine's drift (up to 2x in a day on the shared VMs, swings within minutes)
+    falls on every side alike."""
+    spent: dict[str, list[tuple[float, float]]] = {side: [] for side in sides}
+    for number in range(rounds):
+        for side in sides if number % 2 == 0 else sides[::-1]:
+            before, started = meter.snapshot(), time.monotonic()
+            run_round(side, number)
+            wall = time.monotonic() - started
+            spent[side].append((usage(before, meter.snapshot(), wall)[side]["cpu_seconds"], wall))
+    return spent
 
 
 def _ancestors(pid: int) -> set[int]:

@@ -33,7 +33,7 @@ django.setup()
 
 from access.services import api_token_create  # noqa: E402
 from bench.api_layout import Server, served  # noqa: E402
-from bench.measure import CpuMeter, cpu_speed_ms, usage  # noqa: E402
+from bench.measure import CpuMeter, cpu_speed_ms, interleaved  # noqa: E402
 from bench.suite import api_command  # noqa: E402
 from missions.models import Mission  # noqa: E402
 
@@ -86,25 +86,26 @@ def main() -> None:
     _, token = api_token_create(name=f"{PREFIX}{time.time_ns()}")
     headers = {"Authorization": f"Bearer {token}"}
     per_client = args.requests // args.clients
-    cpu: dict[str, list[float]] = {"a": [], "b": []}
     calibration = cpu_speed_ms()
     with ExitStack() as stack:
-        servers = {}
-        for side, tree in (("a", args.a), ("b", args.b)):
-            env = {**os.environ, "PYTHONPATH": str(tree.resolve())}
-            log = args.logs / f"{side}.log"
-            servers[side] = stack.enter_context(served(api_command, env, log, cwd=tree.resolve()))
+        servers = {
+            side: stack.enter_context(
+                served(api_command, dict(os.environ), args.logs / f"{side}.log", cwd=tree.resolve())
+            )
+            for side, tree in (("a", args.a), ("b", args.b))
+        }
         for side, server in servers.items():
             request_round(server.url, headers, args.clients, per_client, f"{side}-warm", args.get)
-        meter = cpu_meter(servers)
-        for number in range(args.rounds):
-            for side in ("a", "b") if number % 2 == 0 else ("b", "a"):
-                before, started = meter.snapshot(), time.monotonic()
-                request_round(
-                    servers[side].url, headers, args.clients, per_client, f"{side}-{number}", args.get
-                )
-                spent = usage(before, meter.snapshot(), time.monotonic() - started)[side]["cpu_seconds"]
-                cpu[side].append(spent * 1000 / (per_client * args.clients))
+        spent = interleaved(
+            ["a", "b"],
+            args.rounds,
+            cpu_meter(servers),
+            lambda side, number: request_round(
+                servers[side].url, headers, args.clients, per_client, f"{side}-{number}", args.get
+            ),
+        )
+    per_round = per_client * args.clients
+    cpu = {side: [seconds * 1000 / per_round for seconds, _ in rounds] for side, rounds in spent.items()}
     Mission.objects.filter(name__startswith=PREFIX).delete()
     what = "GET /robot" if args.get else "POST /mission"
     print(

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from bench import measure, report
-from bench.measure import ProcessSample, Snapshot
+from bench.measure import CpuMeter, ProcessSample, Snapshot, interleaved
 
 
 def test_usage_between_snapshots_counts_new_processes_in_full_and_reaped_ones_by_their_parent() -> None:
@@ -198,3 +198,14 @@ def test_series_plot_is_written_for_runs_and_idle_fleets(tmp_path: Path) -> None
 
         assert path.name == f"{mode}-n3-abc-series.png"
         assert path.read_bytes().startswith(b"\x89PNG")
+
+
+def test_interleaved_rounds_reverse_the_order_every_other_round_and_time_each_side() -> None:
+    calls: list[tuple[str, int]] = []
+    meter = CpuMeter({"a": r"\Ano process has this command line\Z", "b": r"\Anor this one\Z"})
+
+    spent = interleaved(["a", "b"], 3, meter, lambda side, number: calls.append((side, number)))
+
+    assert calls == [("a", 0), ("b", 0), ("b", 1), ("a", 1), ("a", 2), ("b", 2)]
+    assert [len(spent[side]) for side in ("a", "b")] == [3, 3]
+    assert all(cpu == 0 and wall >= 0 for rounds in spent.values() for cpu, wall in rounds)
