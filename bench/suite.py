@@ -30,6 +30,7 @@ from pathlib import Path
 import redis
 
 from bench import fleet, report
+from bench.processes import running
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results"  # make bench's results; their report is bench/latest.md
@@ -201,25 +202,10 @@ def stack(logs: Path, *, bridges: int = 1, workers: int = 1) -> Iterator[str]:
     subprocess.run([sys.executable, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env, check=True)
     token = api_token_create(env, "bench")
     redis.Redis.from_url(STACK_ENV["FLEET_REDIS_URL"]).flushdb()
-    logs.mkdir(parents=True, exist_ok=True)
-    running = {
-        name: subprocess.Popen(
-            argv, cwd=ROOT, env=env, stdout=(logs / f"{name}.log").open("wb"), stderr=subprocess.STDOUT
-        )
-        for name, argv in processes(bridges, workers).items()
-    }
-    try:
+    # A server process gone (a crashed bridge, say) fails the run: its figures describe another layout.
+    with running(processes(bridges, workers), ROOT, env, logs):
         _wait_for_api()
         yield token
-        # Figures measured with a server process gone (a crashed bridge, say) describe another layout.
-        exited = [name for name, process in running.items() if process.poll() is not None]
-        if exited:
-            raise RuntimeError(f"server processes exited during the runs: {exited}; see their logs in {logs}")
-    finally:
-        for process in running.values():
-            process.terminate()
-        for process in running.values():
-            process.wait(timeout=60)
 
 
 def api_token_create(env: dict[str, str], name: str) -> str:
