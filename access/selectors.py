@@ -9,7 +9,7 @@ from django.contrib.auth import HASH_SESSION_KEY, get_user_model
 from django.contrib.auth.base_user import AbstractBaseUser
 from django.contrib.sessions.models import Session
 from django.db import connection
-from django.db.models import Q, QuerySet
+from django.db.models import QuerySet
 from django.utils import timezone
 from django.utils.crypto import constant_time_compare
 from rest_framework.request import Request
@@ -87,12 +87,11 @@ def credentials_usable(credentials: Collection[Credential]) -> set[Credential]:
     would end or re-key the operator's session). Three queries at most, however many credentials."""
     now = timezone.now()
     token_ids = {credential.token_id for credential in credentials if credential.token_id}
-    usable_tokens = set(
-        ApiToken.objects.get_usable_keys()
-        .filter(pk__in=token_ids)
-        .filter(Q(expiry_date__isnull=True) | Q(expiry_date__gt=now))
-        .values_list("pk", flat=True)
-    )
+    usable_tokens = {
+        token.pk
+        for token in ApiToken.objects.get_usable_keys().filter(pk__in=token_ids)
+        if not token.has_expired  # the library's own test, as authentication (`api_token_for_key`) uses
+    }
     sessions = [credential for credential in credentials if credential.session_key]
     live_sessions = set(
         Session.objects.filter(
