@@ -551,17 +551,13 @@ def _resend_due(
     robot lacks it, unless the robot may not take orders now or the order went stale with a route update
     (then it is canceled, never re-sent), or is being canceled (3.0: no order update after cancelOrder). A
     state that may have left the robot before the order reached it (a bridge behind on a busy fleet stores
-    such states late) is no reason to resend: that would only add load when there is too much. An order
-    update sent ahead is not re-sent to a robot that stopped at the end of the running leaf without it:
-    the next leaf decides what becomes of it (`_take_up_ahead`)."""
+    such states late) is no reason to resend: that would only add load when there is too much."""
     if mission.order_sent_at is not None:
         if now - mission.order_sent_at < settings.order_resend:
             return False
         if not arrived_after_order(state_arrived_at, mission.order_sent_at):
             return False
     if mission.needs_canceled or _pending_action(result, ActionType.CANCEL_ORDER) is not None:
-        return False
-    if sent.ahead is not None and _stopped_on(state, sent.message):
         return False
     return vda_state.may_receive_orders(state) and not _route_update_pending(tree, mission, leaf, settings)
 
@@ -755,9 +751,12 @@ def _take_up_ahead(
     settings: DispatchSettings,
 ) -> bool:
     """`leaf`, now to start, was sent ahead (`_extend`). Once the robot holds that order update, the leaf
-    runs on it with no order of its own, and the step goes on with it (True). If the robot refused it, or a
-    state that arrived well after it shows the robot without it, it is dropped and the leaf gets an order
-    of its own, as any other (False). Until a state tells which, the leaf waits (True)."""
+    runs on it with no order of its own, and the step goes on with it (True). If the robot refused it, or
+    no longer holds the order it extends, it is dropped and the leaf gets an order of its own, as any
+    other (False). Until then the leaf waits (True), and a robot stopped at the end of the running leaf
+    without the update gets it again, identical, as any unacknowledged order: a state without it proves
+    nothing by its timing alone (a robot or a machine starved for a second answers late), and an order of
+    the leaf's own beside an update the robot may hold would drive the route twice or be refused as busy."""
     assert mission.order is not None
     sent = sent_order(mission.order)
     assert sent.ahead is not None
@@ -776,12 +775,14 @@ def _take_up_ahead(
             _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
         return True
     refused = vda_state.order_rejection(state, sent.ahead.order_id, sent.ahead.order_update_id) is not None
-    lacked = mission.order_sent_at is None or arrived_after_order(state_arrived_at, mission.order_sent_at)
-    if not (refused or lacked):
-        return True
-    result.rejected = result.rejected or refused
-    _drop_ahead(mission, sent, state)
-    return False
+    if refused or state.order_id != sent.ahead.order_id:
+        result.rejected = result.rejected or refused
+        _drop_ahead(mission, sent, state)
+        return False
+    if _resend_due(result, state, state_arrived_at, mission, tree, leaf, sent, now, settings):
+        mission.order_sent_at = now
+        result.messages.append(Outgoing(sent.ahead))
+    return True
 
 
 def _extend(

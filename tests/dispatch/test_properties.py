@@ -112,7 +112,7 @@ SCENARIOS: dict[str, Scenario] = {
     "ahead-lacked": _on_running(
         [route("r1"), route("r2")],
         lambda d: finished(dispatch.sent_order(d.mission.order).message),
-        after=2.0,
+        after=3.5,  # the update re-sent
     ),
     "mission-completed": _on_running([route("r")], lambda d: finished(d.order)),
     "rejected": _on_running(
