@@ -1,0 +1,157 @@
+"""PostgreSQL's work per mission on the dispatch path, in-process: each mission created by the service the API
+calls, started by a step, its order taken (the bridge's flush of taken orders) and ended by the next step,
+which starts the robot's next mission, as at saturation. Counts what does not depend on the machine's
+speed (write-ahead log bytes, mission UPDATEs and the share of them PostgreSQL made HOT, change-feed rows)
+and, beside them, the CPU of the connection's backend and of this process. Run on a database and a Redis
+database of their own:
+
+    FLEET_DB_NAME=md_pg_cost FLEET_REDIS_URL=redis://127.0.0.1:6379/5 FLEET_SECRET_KEY=... \\
+        .venv/bin/python -m bench.pg_cost --missions 600
+
+The WAL figure is the server's: nothing else may write to PostgreSQL meanwhile. To compare two versions,
+migrate a database from each tree and alternate the two runs. Results: bench/README.md, "What the feed
+records".
+"""
+
+import argparse
+import os
+import time
+import uuid
+from dataclasses import dataclass
+
+import django
+
+os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
+django.setup()
+
+import orjson  # noqa: E402
+from django.db import connection  # noqa: E402
+
+from bench.measure import cpu_speed_ms  # noqa: E402
+from bench.robot import FakeRobot, utc_now  # noqa: E402
+from fleet import livestate  # noqa: E402
+from missions.dispatch import state_digest  # noqa: E402
+from missions.robot_step import mission_orders_accepted, robot_step  # noqa: E402
+from missions.services import mission_create  # noqa: E402
+from robots.models import Robot  # noqa: E402
+from robots.services import robot_create  # noqa: E402
+from vda5050.codec import parse_state  # noqa: E402
+from vda5050.topics import Topic  # noqa: E402
+
+ACTOR = "bench-pg-cost"
+ROUTE = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
+
+
+@dataclass
+class Counters:
+    wal_lsn: str
+    mission_updates: int
+    mission_hot_updates: int
+    changes: int
+    backend_cpu_s: float
+
+
+class Fleet:
+    """Robots driven through the step's own path, their states stored in Redis as the bridge stores them."""
+
+    def __init__(self, robots: int) -> None:
+        run = uuid.uuid4().hex[:6]
+        self.robots = {}
+        self.missions = 0
+        for index in range(robots):
+            name = f"pgcost-{run}-{index}"
+            robot_create(actor=ACTOR, name=name, prefix=None, spec={})
+            Robot.objects.filter(name=name).update(online=True)  # as the bridge's flush has it
+            self.robots[name] = FakeRobot(serial=name, manufacturer="", topic_prefix="", x=0.0, y=0.0)
+            self._store_state(name)
+            self._create_mission(name)
+            self._create_mission(name)
+
+    def cycle(self, name: str) -> None:
+        """Step the robot (ending its mission, if any, and starting the next), have it take the order and
+        finish it, and queue one more mission."""
+        robot = self.robots[name]
+        wire = robot_step(name=name).wire
+        livestate.claim_published(name, [(m.topic.value, m.header_id) for m in wire])  # as the publisher
+        [order] = [orjson.loads(m.payload) for m in wire if m.topic is Topic.ORDER]
+        robot.accept(order)
+        self._store_state(name)
+        mission_orders_accepted(orders={name: (order["orderId"], order["orderUpdateId"])})
+        robot.finish()
+        self._store_state(name)
+        self._create_mission(name)
+
+    def _create_mission(self, name: str) -> None:
+        self.missions += 1
+        spec = {"robot": name, "mission_tree": [ROUTE]}
+        mission_create(actor=ACTOR, name=f"{name}-m{self.missions}", prefix=None, spec=spec)
+
+    def _store_state(self, name: str) -> None:
+        robot = self.robots[name]
+        payload = robot.state(utc_now())
+        pipe = livestate.client().pipeline(transaction=False)
+        livestate.store_state(
+            pipe,
+            name=name,
+            payload=payload,
+            timestamp_ms=int(time.time() * 1000),
+            header_id=robot.header_ids["state"] - 1,
+            digest=state_digest(parse_state(payload)),
+            arrived_at=time.time(),
+        )
+        livestate.execute(pipe)
+
+
+def counters() -> Counters:
+    """The server's WAL position and the missions table's and the feed's counts, and this connection's
+    backend's CPU."""
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT pg_stat_force_next_flush()")  # this backend's counts, at its next commit
+        cursor.execute(
+            """SELECT pg_current_wal_lsn(), pg_backend_pid(), n_tup_upd, n_tup_hot_upd,
+                (SELECT n_tup_ins FROM pg_stat_user_tables WHERE relname = 'changes_change')
+            FROM pg_stat_user_tables WHERE relname = 'missions_mission'"""
+        )
+        lsn, pid, updates, hot, changes = cursor.fetchone()
+    with open(f"/proc/{pid}/stat") as stat:  # the server runs on this machine
+        fields = stat.read().rsplit(")", 1)[1].split()
+    cpu = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return Counters(lsn, updates, hot, changes, cpu)
+
+
+def wal_bytes(before: str, after: str) -> int:
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT pg_wal_lsn_diff(%s, %s)", [after, before])
+        return int(cursor.fetchone()[0])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--missions", type=int, default=600)
+    parser.add_argument("--robots", type=int, default=20)
+    args = parser.parse_args()
+    fleet = Fleet(args.robots)
+    for name in fleet.robots:  # each robot's first mission started, the tables' first pages written
+        fleet.cycle(name)
+    before, client_cpu = counters(), time.process_time()
+    done = 0
+    while done < args.missions:
+        for name in fleet.robots:
+            fleet.cycle(name)
+            done += 1
+    client_cpu = time.process_time() - client_cpu
+    after = counters()
+    updates = after.mission_updates - before.mission_updates
+    print(
+        f"{done} missions, {args.robots} robots: WAL {wal_bytes(before.wal_lsn, after.wal_lsn) / done:.0f} B"
+        f" per mission; {updates / done:.2f} mission UPDATEs per mission,"
+        f" {(after.mission_hot_updates - before.mission_hot_updates) / max(updates, 1):.0%} HOT;"
+        f" {(after.changes - before.changes) / done:.2f} feed rows per mission;"
+        f" CPU per mission: PostgreSQL backend"
+        f" {(after.backend_cpu_s - before.backend_cpu_s) / done * 1e3:.2f} ms,"
+        f" this process {client_cpu / done * 1e3:.2f} ms; calibration {cpu_speed_ms():.0f} ms"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,80 @@
+"""The feed records what the API shows: a row's image leaves out the columns only the dispatch core reads,
+and an UPDATE that changed nothing else records nothing.
+
+Before, every step that sent a robot a message recorded the robot (its outbox and headerIds changed) and
+every order a robot took recorded its mission (order_accepted): rows of a kilobyte or more each that no
+watcher was ever sent, as the stream drops an object whose image shows nothing new. updated_at, which no
+representation shows, changes with everything and so decides nothing.
+"""
+
+from django.db import migrations
+
+TABLE = "changes_change"
+
+# The columns of each table that no API representation, filter or page shows.
+UNSHOWN = {
+    "robots_robot": ("robot", ("outbox", "next_order_header_id", "next_instant_actions_header_id")),
+    "missions_mission": ("mission", ("order", "attempts", "order_sent_at", "order_accepted")),
+}
+
+RECORD_FUNCTION = f"""
+CREATE OR REPLACE FUNCTION changes_record() RETURNS trigger LANGUAGE plpgsql AS $$
+DECLARE
+    unshown text[] := coalesce(string_to_array(TG_ARGV[1], ','), '{{}}');
+    image jsonb;
+BEGIN
+    IF TG_OP = 'DELETE' THEN
+        INSERT INTO {TABLE} (kind, name, image)
+        VALUES (TG_ARGV[0], OLD.name, jsonb_set(to_jsonb(OLD) - unshown, '{{lifecycle}}', '"DELETED"'));
+        RETURN OLD;
+    END IF;
+    image := to_jsonb(NEW) - unshown;
+    IF TG_OP = 'UPDATE' AND image - 'updated_at' = to_jsonb(OLD) - unshown - 'updated_at' THEN
+        RETURN NEW;
+    END IF;
+    INSERT INTO {TABLE} (kind, name, image) VALUES (TG_ARGV[0], NEW.name, image);
+    RETURN NEW;
+END $$;
+"""
+
+# 0001's function, for going back.
+WHOLE_ROW_FUNCTION = f"""
+CREATE OR REPLACE FUNCTION changes_record() RETURNS trigger LANGUAGE plpgsql AS $$
+BEGIN
+    IF TG_OP = 'DELETE' THEN
+        INSERT INTO {TABLE} (kind, name, image)
+        VALUES (TG_ARGV[0], OLD.name, jsonb_set(to_jsonb(OLD), '{{lifecycle}}', '"DELETED"'));
+        RETURN OLD;
+    END IF;
+    INSERT INTO {TABLE} (kind, name, image) VALUES (TG_ARGV[0], NEW.name, to_jsonb(NEW));
+    RETURN NEW;
+END $$;
+"""
+
+
+def _triggers(table: str, kind: str, unshown: tuple[str, ...]) -> str:
+    """0001's triggers (the WHEN skips a write of the same values cheaply), with the unshown columns."""
+    arguments = f"'{kind}'" + (f", '{','.join(unshown)}'" if unshown else "")
+    return f"""
+    DROP TRIGGER {table}_changes ON {table};
+    DROP TRIGGER {table}_changes_update ON {table};
+    CREATE TRIGGER {table}_changes AFTER INSERT OR DELETE ON {table}
+        FOR EACH ROW EXECUTE FUNCTION changes_record({arguments});
+    CREATE TRIGGER {table}_changes_update AFTER UPDATE ON {table}
+        FOR EACH ROW WHEN (OLD.* IS DISTINCT FROM NEW.*) EXECUTE FUNCTION changes_record({arguments});
+    """
+
+
+class Migration(migrations.Migration):
+    dependencies = [
+        ("changes", "0002_trim_mark"),
+        ("robots", "0007_robot_map_action"),
+    ]
+
+    operations = [
+        migrations.RunSQL(RECORD_FUNCTION, WHOLE_ROW_FUNCTION),
+        *(
+            migrations.RunSQL(_triggers(table, kind, unshown), _triggers(table, kind, ()))
+            for table, (kind, unshown) in UNSHOWN.items()
+        ),
+    ]
