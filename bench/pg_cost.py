@@ -125,31 +125,51 @@ def wal_bytes(before: str, after: str) -> int:
         return int(cursor.fetchone()[0])
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--missions", type=int, default=600)
-    parser.add_argument("--robots", type=int, default=20)
-    args = parser.parse_args()
-    fleet = Fleet(args.robots)
+@dataclass
+class PerMission:
+    wal_bytes: float
+    mission_updates: float
+    hot_share: float
+    feed_rows: float
+    backend_cpu_ms: float
+    client_cpu_ms: float
+
+
+def measure(*, missions: int, robots: int) -> PerMission:
+    """Run at least `missions` missions through `robots` new robots; PostgreSQL's work per mission."""
+    fleet = Fleet(robots)
     for name in fleet.robots:  # each robot's first mission started, the tables' first pages written
         fleet.cycle(name)
     before, client_cpu = counters(), time.process_time()
     done = 0
-    while done < args.missions:
+    while done < missions:
         for name in fleet.robots:
             fleet.cycle(name)
             done += 1
     client_cpu = time.process_time() - client_cpu
     after = counters()
     updates = after.mission_updates - before.mission_updates
+    return PerMission(
+        wal_bytes=wal_bytes(before.wal_lsn, after.wal_lsn) / done,
+        mission_updates=updates / done,
+        hot_share=(after.mission_hot_updates - before.mission_hot_updates) / max(updates, 1),
+        feed_rows=(after.changes - before.changes) / done,
+        backend_cpu_ms=(after.backend_cpu_s - before.backend_cpu_s) / done * 1e3,
+        client_cpu_ms=client_cpu / done * 1e3,
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--missions", type=int, default=600)
+    parser.add_argument("--robots", type=int, default=20)
+    args = parser.parse_args()
+    cost = measure(missions=args.missions, robots=args.robots)
     print(
-        f"{done} missions, {args.robots} robots: WAL {wal_bytes(before.wal_lsn, after.wal_lsn) / done:.0f} B"
-        f" per mission; {updates / done:.2f} mission UPDATEs per mission,"
-        f" {(after.mission_hot_updates - before.mission_hot_updates) / max(updates, 1):.0%} HOT;"
-        f" {(after.changes - before.changes) / done:.2f} feed rows per mission;"
-        f" CPU per mission: PostgreSQL backend"
-        f" {(after.backend_cpu_s - before.backend_cpu_s) / done * 1e3:.2f} ms,"
-        f" this process {client_cpu / done * 1e3:.2f} ms; calibration {cpu_speed_ms():.0f} ms"
+        f"{args.robots} robots: WAL {cost.wal_bytes:.0f} B per mission; {cost.mission_updates:.2f} mission"
+        f" UPDATEs per mission, {cost.hot_share:.0%} HOT; {cost.feed_rows:.2f} feed rows per mission;"
+        f" CPU per mission: PostgreSQL backend {cost.backend_cpu_ms:.2f} ms, this process"
+        f" {cost.client_cpu_ms:.2f} ms; calibration {cpu_speed_ms():.0f} ms"
     )
 
 
