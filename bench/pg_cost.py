@@ -56,7 +56,7 @@ class Fleet:
 
     def __init__(self, robots: int) -> None:
         run = uuid.uuid4().hex[:6]
-        self.robots = {}
+        self.robots: dict[str, FakeRobot] = {}
         self.missions = 0
         for index in range(robots):
             name = f"pgcost-{run}-{index}"
