@@ -1,9 +1,9 @@
 """PostgreSQL's work per mission on the dispatch path, in-process: each mission created by the service the API
-calls, started by a step, its order taken (the bridge's flush of taken orders) and ended by the next step,
-which starts the robot's next mission, as at saturation. Counts what does not depend on the machine's
-speed (write-ahead log bytes, mission UPDATEs and the share of them PostgreSQL made HOT, change-feed rows)
-and, beside them, the CPU of the connection's backend and of this process. Run on a database and a Redis
-database of their own:
+calls, started by a step, its order taken (the bridge's flush of taken orders, one statement for all
+robots) and ended by the next step, which starts the robot's next mission, as at saturation. Counts what
+does not depend on the machine's speed (write-ahead log bytes, mission UPDATEs and the share of them
+PostgreSQL made HOT, change-feed rows) and, beside them, the CPU of the connection's backend and of this
+process. Run on a database and a Redis database of their own:
 
     FLEET_DB_NAME=md_pg_cost FLEET_REDIS_URL=redis://127.0.0.1:6379/5 FLEET_SECRET_KEY=... \\
         .venv/bin/python -m bench.pg_cost --missions 600
@@ -67,19 +67,24 @@ class Fleet:
             self._create_mission(name)
             self._create_mission(name)
 
-    def cycle(self, name: str) -> None:
-        """Step the robot (ending its mission, if any, and starting the next), have it take the order and
-        finish it, and queue one more mission."""
-        robot = self.robots[name]
-        wire = robot_step(name=name).wire
-        livestate.claim_published(name, [(m.topic.value, m.header_id) for m in wire])  # as the publisher
-        [order] = [orjson.loads(m.payload) for m in wire if m.topic is Topic.ORDER]
-        robot.accept(order)
-        self._store_state(name)
-        mission_orders_accepted(orders={name: (order["orderId"], order["orderUpdateId"])})
-        robot.finish()
-        self._store_state(name)
-        self._create_mission(name)
+    def round(self) -> int:
+        """Step every robot (ending its mission, if any, and starting the next) and have it take the order;
+        flush the taken orders in one statement, as the bridge does once a second; have every robot finish
+        and queue one more mission. Returns the number of missions started."""
+        taken = {}
+        for name, robot in self.robots.items():
+            wire = robot_step(name=name).wire
+            livestate.claim_published(name, [(m.topic.value, m.header_id) for m in wire])  # as publishing
+            [order] = [orjson.loads(m.payload) for m in wire if m.topic is Topic.ORDER]
+            robot.accept(order)
+            self._store_state(name)
+            taken[name] = (order["orderId"], order["orderUpdateId"])
+        mission_orders_accepted(orders=taken)
+        for name, robot in self.robots.items():
+            robot.finish()
+            self._store_state(name)
+            self._create_mission(name)
+        return len(taken)
 
     def _create_mission(self, name: str) -> None:
         self.missions += 1
@@ -138,14 +143,11 @@ class PerMission:
 def measure(*, missions: int, robots: int) -> PerMission:
     """Run at least `missions` missions through `robots` new robots; PostgreSQL's work per mission."""
     fleet = Fleet(robots)
-    for name in fleet.robots:  # each robot's first mission started, the tables' first pages written
-        fleet.cycle(name)
+    fleet.round()  # each robot's first mission started, the tables' first pages written
     before, client_cpu = counters(), time.process_time()
     done = 0
     while done < missions:
-        for name in fleet.robots:
-            fleet.cycle(name)
-            done += 1
+        done += fleet.round()
     client_cpu = time.process_time() - client_cpu
     after = counters()
     updates = after.mission_updates - before.mission_updates
