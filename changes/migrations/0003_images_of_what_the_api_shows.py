@@ -4,7 +4,11 @@ and an UPDATE that changed nothing else records nothing.
 Before, every step that sent a robot a message recorded the robot (its outbox and headerIds changed) and
 every order a robot took recorded its mission (order_accepted): rows of a kilobyte or more each that no
 watcher was ever sent, as the stream drops an object whose image shows nothing new. updated_at, which no
-representation shows, changes with everything and so decides nothing.
+representation shows, written with them decides nothing.
+
+Only an UPDATE that changed an unshown column pays for comparing the row's images before and after
+(`changes_unshown_update`); the others, such as the bridge's status flush of every moving robot each
+second, are recorded as before (`changes_update`).
 """
 
 from django.db import migrations
@@ -17,6 +21,7 @@ UNSHOWN = {
     "missions_mission": ("mission", ("order", "attempts", "order_sent_at", "order_accepted")),
 }
 
+# TG_ARGV: the kind, the unshown columns (comma-separated), and "compare" where an unshown column changed.
 RECORD_FUNCTION = f"""
 CREATE OR REPLACE FUNCTION changes_record() RETURNS trigger LANGUAGE plpgsql AS $$
 DECLARE
@@ -29,7 +34,7 @@ BEGIN
         RETURN OLD;
     END IF;
     image := to_jsonb(NEW) - unshown;
-    IF TG_OP = 'UPDATE' AND image - 'updated_at' = to_jsonb(OLD) - unshown - 'updated_at' THEN
+    IF TG_ARGV[2] = 'compare' AND image - 'updated_at' = to_jsonb(OLD) - unshown - 'updated_at' THEN
         RETURN NEW;
     END IF;
     INSERT INTO {TABLE} (kind, name, image) VALUES (TG_ARGV[0], NEW.name, image);
@@ -52,16 +57,39 @@ END $$;
 """
 
 
+def _row(record: str, columns: tuple[str, ...]) -> str:
+    return "ROW(" + ", ".join(f'{record}."{column}"' for column in columns) + ")"
+
+
 def _triggers(table: str, kind: str, unshown: tuple[str, ...]) -> str:
-    """0001's triggers (the WHEN skips a write of the same values cheaply), with the unshown columns."""
-    arguments = f"'{kind}'" + (f", '{','.join(unshown)}'" if unshown else "")
+    """0001's triggers (the WHEN skips a write of the same values cheaply), with the unshown columns left
+    out of the images and, where one of them changed, the images compared."""
+    arguments = f"'{kind}', '{','.join(unshown)}'"
+    old, new = _row("OLD", unshown), _row("NEW", unshown)
     return f"""
     DROP TRIGGER {table}_changes ON {table};
     DROP TRIGGER {table}_changes_update ON {table};
     CREATE TRIGGER {table}_changes AFTER INSERT OR DELETE ON {table}
         FOR EACH ROW EXECUTE FUNCTION changes_record({arguments});
     CREATE TRIGGER {table}_changes_update AFTER UPDATE ON {table}
-        FOR EACH ROW WHEN (OLD.* IS DISTINCT FROM NEW.*) EXECUTE FUNCTION changes_record({arguments});
+        FOR EACH ROW WHEN (OLD.* IS DISTINCT FROM NEW.* AND {old} IS NOT DISTINCT FROM {new})
+        EXECUTE FUNCTION changes_record({arguments});
+    CREATE TRIGGER {table}_changes_unshown_update AFTER UPDATE ON {table}
+        FOR EACH ROW WHEN ({old} IS DISTINCT FROM {new})
+        EXECUTE FUNCTION changes_record({arguments}, 'compare');
+    """
+
+
+def _whole_row_triggers(table: str, kind: str) -> str:
+    """0001's triggers."""
+    return f"""
+    DROP TRIGGER {table}_changes ON {table};
+    DROP TRIGGER {table}_changes_update ON {table};
+    DROP TRIGGER {table}_changes_unshown_update ON {table};
+    CREATE TRIGGER {table}_changes AFTER INSERT OR DELETE ON {table}
+        FOR EACH ROW EXECUTE FUNCTION changes_record('{kind}');
+    CREATE TRIGGER {table}_changes_update AFTER UPDATE ON {table}
+        FOR EACH ROW WHEN (OLD.* IS DISTINCT FROM NEW.*) EXECUTE FUNCTION changes_record('{kind}');
     """
 
 
@@ -74,7 +102,7 @@ class Migration(migrations.Migration):
     operations = [
         migrations.RunSQL(RECORD_FUNCTION, WHOLE_ROW_FUNCTION),
         *(
-            migrations.RunSQL(_triggers(table, kind, unshown), _triggers(table, kind, ()))
+            migrations.RunSQL(_triggers(table, kind, unshown), _whole_row_triggers(table, kind))
             for table, (kind, unshown) in UNSHOWN.items()
         ),
     ]
