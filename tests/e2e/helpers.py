@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 import uuid
+from collections import defaultdict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -17,6 +18,17 @@ from rest_framework.test import APIClient
 from tests.waiting import wait_for
 
 DONE = {"COMPLETED", "FAILED", "CANCELED"}
+
+
+def order_contents(orders: list[dict[str, Any]]) -> dict[tuple[str, int], set[bytes]]:
+    """(orderId, orderUpdateId) -> the contents sent under it, header aside (a resend repeats one)."""
+    contents: dict[tuple[str, int], set[bytes]] = defaultdict(set)
+    for order in orders:
+        body = {key: value for key, value in order.items() if key not in ("headerId", "timestamp")}
+        contents[order["orderId"], order["orderUpdateId"]].add(
+            orjson.dumps(body, option=orjson.OPT_SORT_KEYS)
+        )
+    return contents
 
 
 def route(name: str, *points: tuple[float, float], parent: str = "root", **extra: Any) -> dict[str, Any]:

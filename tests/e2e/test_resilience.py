@@ -1,7 +1,6 @@
 """Reference scenarios `server.py` and `start_order.py`, plus crashes, duplicates and malformed messages."""
 
 import time
-from collections import defaultdict
 
 import orjson
 import paho.mqtt.client as mqtt
@@ -13,6 +12,7 @@ from tests.e2e.conftest import BRIDGE, PYTHON, WORKER, Process
 from tests.e2e.helpers import (
     create_robot,
     get,
+    order_contents,
     post_mission,
     route,
     wait_mission,
@@ -32,17 +32,6 @@ def long_mission(api, unique, robot: str) -> str:
     legs = [route(f"leg{i}", (x, y)) for i, (x, y) in enumerate([(4, 0), (4, 4), (0, 4), (0, 0)])]
     post_mission(api, name, robot, legs)
     return name
-
-
-def order_contents(orders: list[dict]) -> dict[tuple[str, int], set[bytes]]:
-    """(orderId, orderUpdateId) -> the contents sent under it, header aside (a resend repeats one)."""
-    contents: dict[tuple[str, int], set[bytes]] = defaultdict(set)
-    for order in orders:
-        body = {key: value for key, value in order.items() if key not in ("headerId", "timestamp")}
-        contents[order["orderId"], order["orderUpdateId"]].add(
-            orjson.dumps(body, option=orjson.OPT_SORT_KEYS)
-        )
-    return contents
 
 
 @pytest.mark.parametrize("process", ["worker", "bridge", "beat"])

@@ -4,11 +4,10 @@ a step worker killed in the middle of many missions loses none of them."""
 from __future__ import annotations
 
 import time
-from collections import defaultdict
 
 import pytest
 
-from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission, wait_robot
+from tests.e2e.helpers import create_robot, get, order_contents, post_mission, route, wait_mission, wait_robot
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -55,8 +54,5 @@ def test_a_step_worker_killed_amid_many_missions_loses_none_and_sends_no_order_t
         "COMPLETED"
     ] * len(missions)
     for robot in robots:
-        copies: dict[tuple[str, int], set[bytes]] = defaultdict(set)
-        for order in recorder.for_robot(robot, "order"):
-            content = {k: v for k, v in order.items() if k not in ("headerId", "timestamp")}
-            copies[order["orderId"], order["orderUpdateId"]].add(repr(sorted(content.items())).encode())
-        assert all(len(contents) == 1 for contents in copies.values()), robot
+        contents = order_contents(recorder.for_robot(robot, "order"))
+        assert all(len(bodies) == 1 for bodies in contents.values()), robot
