@@ -3,9 +3,11 @@ only the dispatch core reads, and a write of those alone records nothing. Real P
 step's own path, outside a test transaction (the feed's rows are written by triggers at commit's pace)."""
 
 import importlib
+import re
 
 import pytest
 from django.db import connection
+from django.utils import timezone
 
 from changes.choices import ChangeKind
 from changes.models import Change
@@ -74,17 +76,34 @@ def test_images_leave_out_the_unshown_columns_and_a_shown_change_is_recorded(rob
     assert all(column not in image for image in mission_images for column in MISSION_UNSHOWN)
 
 
-def test_the_unshown_columns_exist_and_every_table_column_else_is_in_the_images(robot: Robot) -> None:
-    """A column renamed would be recorded again unnoticed; a new one is shown unless added to UNSHOWN."""
+def test_an_idle_robots_last_state_at_records_nothing_and_a_shown_column_records_its_change(
+    robot: Robot,
+) -> None:
+    recorded = len(images(ChangeKind.ROBOT, robot.name))
+
+    Robot.objects.filter(name=robot.name).update(last_state_at=timezone.now(), updated_at=timezone.now())
+    assert len(images(ChangeKind.ROBOT, robot.name)) == recorded
+    Robot.objects.filter(name=robot.name).update(online=False, last_state_at=timezone.now())
+    assert [image["online"] for image in images(ChangeKind.ROBOT, robot.name)[recorded:]] == [False]
+
+
+def test_every_column_is_unshown_or_compared_by_the_update_trigger(robot: Robot) -> None:
+    """A column added later and not compared would have its changes go unrecorded: a migration that adds one
+    makes the triggers again (changes 0003's `triggers_sql`)."""
     create("m1", robot)
     robot_step(name=robot.name)
     for model, kind, name, unshown in (
         (Robot, ChangeKind.ROBOT, robot.name, ROBOT_UNSHOWN),
         (Mission, ChangeKind.MISSION, "m1", MISSION_UNSHOWN),
     ):
+        table = model._meta.db_table
         with connection.cursor() as cursor:
-            columns = {
-                c.name for c in connection.introspection.get_table_description(cursor, model._meta.db_table)
-            }
+            columns = {c.name for c in connection.introspection.get_table_description(cursor, table)}
+            cursor.execute(
+                "SELECT pg_get_triggerdef(oid) FROM pg_trigger WHERE tgname = %s", [f"{table}_changes_update"]
+            )
+            [definition] = cursor.fetchone()
         assert set(unshown) <= columns
+        compared = set(re.findall(r'old\.("?)(\w+)\1', definition))
+        assert {column for _, column in compared} == columns - set(unshown)
         assert set(images(kind, name)[-1]) == columns - set(unshown)
