@@ -11,9 +11,12 @@ a column to either table must make the triggers again (`triggers_sql`), else a c
 goes unrecorded (tests/bridge/test_feed_images.py checks that every column is compared or unshown).
 """
 
+import importlib
+
 from django.db import migrations
 
-TABLE = "changes_change"
+# 0001's table, function and triggers, which this replaces (and brings back, going back).
+initial = importlib.import_module("changes.migrations.0001_initial")
 
 # The columns of each table that no API representation, filter or page shows.
 UNSHOWN = {
@@ -26,33 +29,20 @@ UNSHOWN = {
 
 # TG_ARGV: the kind, and the unshown columns (comma-separated), left out of the image.
 RECORD_FUNCTION = f"""
-CREATE OR REPLACE FUNCTION changes_record() RETURNS trigger LANGUAGE plpgsql AS $$
+CREATE FUNCTION changes_record() RETURNS trigger LANGUAGE plpgsql AS $$
 DECLARE
-    unshown text[] := coalesce(string_to_array(TG_ARGV[1], ','), '{{}}');
+    unshown text[] := string_to_array(TG_ARGV[1], ',');
 BEGIN
     IF TG_OP = 'DELETE' THEN
-        INSERT INTO {TABLE} (kind, name, image)
+        INSERT INTO {initial.TABLE} (kind, name, image)
         VALUES (TG_ARGV[0], OLD.name, jsonb_set(to_jsonb(OLD) - unshown, '{{lifecycle}}', '"DELETED"'));
         RETURN OLD;
     END IF;
-    INSERT INTO {TABLE} (kind, name, image) VALUES (TG_ARGV[0], NEW.name, to_jsonb(NEW) - unshown);
+    INSERT INTO {initial.TABLE} (kind, name, image) VALUES (TG_ARGV[0], NEW.name, to_jsonb(NEW) - unshown);
     RETURN NEW;
 END $$;
 """
-
-# 0001's function, for going back.
-WHOLE_ROW_FUNCTION = f"""
-CREATE OR REPLACE FUNCTION changes_record() RETURNS trigger LANGUAGE plpgsql AS $$
-BEGIN
-    IF TG_OP = 'DELETE' THEN
-        INSERT INTO {TABLE} (kind, name, image)
-        VALUES (TG_ARGV[0], OLD.name, jsonb_set(to_jsonb(OLD), '{{lifecycle}}', '"DELETED"'));
-        RETURN OLD;
-    END IF;
-    INSERT INTO {TABLE} (kind, name, image) VALUES (TG_ARGV[0], NEW.name, to_jsonb(NEW));
-    RETURN NEW;
-END $$;
-"""
+DROP_FUNCTION = "DROP FUNCTION changes_record();"
 
 
 def triggers_sql(table: str, kind: str, unshown: tuple[str, ...], columns: list[str]) -> str:
@@ -63,8 +53,6 @@ def triggers_sql(table: str, kind: str, unshown: tuple[str, ...], columns: list[
         "ROW(" + ", ".join(f'{record}."{column}"' for column in shown) + ")" for record in ("OLD", "NEW")
     )
     return f"""
-    DROP TRIGGER {table}_changes ON {table};
-    DROP TRIGGER {table}_changes_update ON {table};
     CREATE TRIGGER {table}_changes AFTER INSERT OR DELETE ON {table}
         FOR EACH ROW EXECUTE FUNCTION changes_record({arguments});
     CREATE TRIGGER {table}_changes_update AFTER UPDATE ON {table}
@@ -72,21 +60,10 @@ def triggers_sql(table: str, kind: str, unshown: tuple[str, ...], columns: list[
     """
 
 
-def _whole_row_triggers(table: str, kind: str) -> str:
-    """0001's triggers."""
-    return f"""
-    DROP TRIGGER {table}_changes ON {table};
-    DROP TRIGGER {table}_changes_update ON {table};
-    CREATE TRIGGER {table}_changes AFTER INSERT OR DELETE ON {table}
-        FOR EACH ROW EXECUTE FUNCTION changes_record('{kind}');
-    CREATE TRIGGER {table}_changes_update AFTER UPDATE ON {table}
-        FOR EACH ROW WHEN (OLD.* IS DISTINCT FROM NEW.*) EXECUTE FUNCTION changes_record('{kind}');
-    """
-
-
 def _record_shown(apps, schema_editor) -> None:
     connection = schema_editor.connection
     with connection.cursor() as cursor:
+        cursor.execute("".join(initial._drop_triggers(table) for table in UNSHOWN) + DROP_FUNCTION)
         cursor.execute(RECORD_FUNCTION)
         for table, (kind, unshown) in UNSHOWN.items():
             columns = [c.name for c in connection.introspection.get_table_description(cursor, table)]
@@ -95,9 +72,9 @@ def _record_shown(apps, schema_editor) -> None:
 
 def _record_whole_rows(apps, schema_editor) -> None:
     with schema_editor.connection.cursor() as cursor:
-        for table, (kind, _) in UNSHOWN.items():
-            cursor.execute(_whole_row_triggers(table, kind))
-        cursor.execute(WHOLE_ROW_FUNCTION)
+        cursor.execute("".join(initial._drop_triggers(table) for table in UNSHOWN) + DROP_FUNCTION)
+        cursor.execute(initial.RECORD_FUNCTION)
+        cursor.execute("".join(initial._triggers(table, kind) for table, (kind, _) in UNSHOWN.items()))
 
 
 class Migration(migrations.Migration):
