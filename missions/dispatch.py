@@ -502,7 +502,7 @@ def _follow_order(
         leaf_order_held = vda_state.order_accepted(state, order_id, sent.message.order_update_id)
         if vda_state.order_accepted(state, order_id, sent.latest.order_update_id):
             mission.order_accepted = True
-        elif _resend_due(result, state, state_arrived_at, mission, tree, leaf, sent, now, settings):
+        elif _resend_due(result, state, state_arrived_at, mission, tree, leaf, now, settings):
             if sent.ahead is not None and not leaf_order_held:
                 # No robot takes an update of an order it lacks: both again, in order. Not the order alone
                 # with the update dropped: the first sending may still reach the robot (a broker that was
@@ -543,7 +543,6 @@ def _resend_due(
     mission: MissionRecord,
     tree: engine.Tree,
     leaf: engine.Node,
-    sent: SentOrder,
     now: datetime,
     settings: DispatchSettings,
 ) -> bool:
@@ -779,7 +778,7 @@ def _take_up_ahead(
         result.rejected = result.rejected or refused
         _drop_ahead(mission, sent, state)
         return False
-    if _resend_due(result, state, state_arrived_at, mission, tree, leaf, sent, now, settings):
+    if _resend_due(result, state, state_arrived_at, mission, tree, leaf, now, settings):
         mission.order_sent_at = now
         result.messages.append(Outgoing(sent.ahead))
     return True
