@@ -27,7 +27,7 @@ django.setup()
 import orjson  # noqa: E402
 from django.db import connection  # noqa: E402
 
-from bench.measure import cpu_speed_ms  # noqa: E402
+from bench.measure import cpu_speed_ms, process_sample  # noqa: E402
 from bench.robot import FakeRobot, utc_now  # noqa: E402
 from fleet import livestate  # noqa: E402
 from missions.dispatch import state_digest  # noqa: E402
@@ -118,10 +118,9 @@ def counters() -> Counters:
             FROM pg_stat_user_tables WHERE relname = 'missions_mission'"""
         )
         lsn, pid, updates, hot, changes = cursor.fetchone()
-    with open(f"/proc/{pid}/stat") as stat:  # the server runs on this machine
-        fields = stat.read().rsplit(")", 1)[1].split()
-    cpu = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    return Counters(lsn, updates, hot, changes, cpu)
+    backend = process_sample(pid)  # the server runs on this machine
+    assert backend is not None
+    return Counters(lsn, updates, hot, changes, backend.cpu_seconds)
 
 
 def wal_bytes(before: str, after: str) -> int:
