@@ -15,4 +15,4 @@ def test_each_mission_is_created_started_taken_and_ended_and_counted() -> None:
     assert Mission.objects.filter(state="COMPLETED").count() == 12  # each measured cycle ended one
     assert cost.mission_updates == 3.0  # started, its order taken, ended
     assert cost.feed_rows == 3.0  # created, started, ended: taking the order shows nothing new
-    assert cost.wal_bytes > 0 and cost.backend_cpu_ms > 0 and cost.client_cpu_ms > 0
+    assert cost.wal_bytes > 0 and cost.client_cpu_ms > 0  # the backend's CPU, in 10-ms ticks, may read 0
