@@ -25,12 +25,15 @@ LAST_SEEN = f"{PREFIX}:last-seen"
 # harmless), marks the robot heard and online, and says whether what steps read (its digest) changed.
 # Messages are ordered by the robot's (timestamp, headerId); a restarted robot resets headerId, not time.
 # A state not stored does not count as heard: a replayed one must not keep a silent robot online.
-# KEYS: robot hash, LAST_SEEN, ONLINE_SET. ARGV: payload, timestamp (ms), headerId, the fields of the
-# state's StateDigest, when the state arrived (epoch s, the bridge's clock), the robot's name.
-# Returns {outcome, came online (1/0)[, the replaced state's digest fields]}: outcome -1 replayed (the stored
-# state's timestamp and headerId), 0 stale (older), 1 same digest, 2 changed.
+# KEYS: robot hash, LAST_SEEN, ONLINE_SET. ARGV: payload, timestamp (ms), headerId, the state's StateDigest's
+# full, events, order_id, order_update_id and busy, when the state arrived (epoch s, the bridge's clock), the
+# robot's name, the digest's finished_actions.
+# Returns {outcome, came online (1/0)[, the replaced state's digest fields, in that order]}: outcome -1
+# replayed (the stored state's timestamp and headerId), 0 stale (older), 1 same digest, 2 changed. A state
+# stored by a bridge that did not record finished actions apart has '' for them (NO_FINISHED_ACTIONS).
 _STORE_STATE = """
-local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'full', 'events', 'order_id', 'order_update_id', 'busy')
+local old = redis.call('HMGET', KEYS[1], 'ts', 'hid', 'full', 'events', 'order_id', 'order_update_id', 'busy',
+  'finished')
 local ts, hid = tonumber(ARGV[2]), tonumber(ARGV[3])
 if old[1] then
   local old_ts, old_hid = tonumber(old[1]), tonumber(old[2])
@@ -39,12 +42,12 @@ if old[1] then
 end
 redis.call('HSET', KEYS[1], 'state', ARGV[1], 'ts', ARGV[2], 'hid', ARGV[3],
   'full', ARGV[4], 'events', ARGV[5], 'order_id', ARGV[6], 'order_update_id', ARGV[7], 'busy', ARGV[8],
-  'at', ARGV[9])
+  'at', ARGV[9], 'finished', ARGV[11])
 redis.call('ZADD', KEYS[2], ARGV[9], ARGV[10])
 local came_online = redis.call('SADD', KEYS[3], ARGV[10])
 if old[3] == ARGV[4] then return {1, came_online} end
 if not old[3] then return {2, came_online} end
-return {2, came_online, old[3], old[4], old[5], old[6], old[7]}
+return {2, came_online, old[3], old[4], old[5], old[6], old[7], old[8] or ''}
 """
 
 # Orders a robot's messages on another topic as states are ordered, by (timestamp, headerId): records the
@@ -145,7 +148,7 @@ def store_state(
     robot heard at `arrived_at` (epoch s, this host's clock) and online."""
     args = [payload, timestamp_ms, header_id, digest.full, digest.events, digest.order_id]
     args += [digest.order_update_id, int(digest.busy)]
-    args += [repr(arrived_at), name]
+    args += [repr(arrived_at), name, digest.finished_actions]
     pipe.evalsha(_STORE_STATE_SHA, 3, robot_key(name), LAST_SEEN, ONLINE_SET, *args)
 
 
@@ -194,8 +197,8 @@ def stored(result: list[Any]) -> Stored:
     outcome, came_online, *digest = result
     if not digest:
         return Stored(outcome, None, bool(came_online))
-    full, events, order_id, order_update_id, busy = (value.decode() for value in digest)
-    replaced = StateDigest(full, events, order_id, int(order_update_id), busy == "1")
+    full, events, order_id, order_update_id, busy, finished_actions = (value.decode() for value in digest)
+    replaced = StateDigest(full, events, finished_actions, order_id, int(order_update_id), busy == "1")
     return Stored(CHANGED, replaced, bool(came_online))
 
 

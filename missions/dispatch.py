@@ -15,6 +15,8 @@ from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from typing import Any
 
+import orjson
+
 from missions import engine
 from missions.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
 from vda5050 import compat, maps, orders
@@ -989,15 +991,18 @@ def _end(
 class StateDigest:
     """What steps read in a robot's state, for the bridge to tell which states need a step.
 
-    `full` changes with anything a step reads. `events` with what needs a step whatever order the robot
-    holds: finished and started actions, errors, operating mode, charging, battery in whole percent,
-    pause, maps. Pose and other high-rate fields are left out of both on purpose: a moving robot must not
-    cost a step per state message. Battery counts in whole percent because it gates queued missions at the
-    critical level.
+    `full` changes with anything a step reads. `events` and `finished_actions` with what needs a step
+    whatever order the robot holds: started actions, errors, operating mode, charging, battery in whole
+    percent, pause, maps; and the actions that finished or failed, apart because a robot taking an order
+    commonly drops the finished ones of the order before and of its instant actions from its state, which
+    tells a step nothing (`takes_order_only`). Pose and other high-rate fields are left out of all three on
+    purpose: a moving robot must not cost a step per state message. Battery counts in whole percent because
+    it gates queued missions at the critical level.
     """
 
     full: str
     events: str
+    finished_actions: str  # a JSON array of "actionId=STATUS"; NO_FINISHED_ACTIONS when not known
     order_id: str
     order_update_id: int
     busy: bool  # nodes, edges or actions of an order left to do (not vda5050.state.is_idle)
@@ -1014,8 +1019,10 @@ def state_digest(state: State) -> StateDigest:
         str(len(state.edge_states)),
         ",".join(f"{a.action_id}={a.action_status.value}" for a in actions if a.action_status not in FINAL),
     ]
+    finished_actions = orjson.dumps(
+        sorted(f"{a.action_id}={a.action_status.value}" for a in actions if a.action_status in FINAL)
+    ).decode()
     events = [
-        ",".join(f"{a.action_id}={a.action_status.value}" for a in actions if a.action_status in FINAL),
         # Started: a state that takes an order whose action is already under way (a pause_order the robot
         # starts where it stands) needs its step, which puts the robot in TELEOP.
         ",".join(a.action_id for a in actions if a.action_status in STARTED),
@@ -1032,8 +1039,9 @@ def state_digest(state: State) -> StateDigest:
         ",".join(f"{m.map_id}/{m.map_version}/{m.map_status.value}" for m in state.maps or ()),
     ]
     return StateDigest(
-        full="|".join(progress + events),
+        full="|".join([*progress, finished_actions, *events]),
         events="|".join(events),
+        finished_actions=finished_actions,
         order_id=state.order_id,
         order_update_id=state.order_update_id,
         busy=not vda_state.is_idle(state),
@@ -1082,6 +1090,20 @@ def order_finished(held: HeldOrder | None, *, order_id: str, update_id: int) -> 
     )
 
 
+# A digest stored by a bridge of a version that did not record finished actions apart.
+NO_FINISHED_ACTIONS = ""
+
+
+def _no_action_finished(before: str, after: str) -> bool:
+    """No action finished or failed between the two states: every one that did in `after` had in `before`
+    (those that are gone no longer matter)."""
+    if after == before:
+        return True
+    if before == NO_FINISHED_ACTIONS:
+        return False
+    return set(orjson.loads(after)) <= set(orjson.loads(before))
+
+
 def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
     """The robot took a new order, or a newer update of the order it runs, and nothing else a step reads
     changed: the step that sent the order did all there is to do, so this state needs none.
@@ -1090,9 +1112,13 @@ def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
     check (`missions.robot_step.mission_orders_accepted`). Leaving one order unfinished for another is not
     taking an order only: the step must see the first one end. Nor is taking an update of the order the
     robot had stopped at the end of: the route that update carries (one sent ahead that reached the robot
-    late) starts running now, and its step must see that.
+    late) starts running now, and its step must see that. The finished actions of the order before and of
+    instant actions, which a robot taking an order commonly drops from its state, do not count: the steps
+    of the states that showed them finish have seen them.
     """
     if not after.busy or after.events != before.events:
+        return False
+    if not _no_action_finished(before.finished_actions, after.finished_actions):
         return False
     if before.busy:
         return after.order_id == before.order_id and after.order_update_id > before.order_update_id

@@ -166,6 +166,36 @@ def test_a_robot_that_only_took_its_order_needs_no_step_and_the_flush_marks_the_
     assert Mission.objects.get(robot=robot.name).order_accepted
 
 
+def test_a_robot_that_took_its_order_dropping_a_finished_instant_action_needs_no_step(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """As a robot does when it takes an order: the instant action that finished before it (the factsheet
+    request every robot gets when it comes online) is gone from its state."""
+    order_id = running_order(bridge, robot)
+    finished = [("factsheet-1", ActionStatus.FINISHED)]
+    bridge.handle([state_message(robot, header_id=2, at=1.0, action_states=finished)])
+    assert step_requested(robot)  # the action finished: its step records that
+
+    bridge.handle([state_message(robot, header_id=3, at=2.0, order_id=order_id, node_states=[2])])
+
+    assert not step_requested(robot)
+    bridge.flush()
+    assert Mission.objects.get(robot=robot.name).order_accepted
+
+
+def test_a_state_stored_before_finished_actions_were_kept_apart_leaves_the_next_state_its_step(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """A bridge of the version before kept no finished actions apart: what it stored cannot tell whether
+    an action finished since, so taking the order gets a step, as it did then."""
+    order_id = running_order(bridge, robot)
+    livestate.client().hdel(livestate.robot_key(robot.name), "finished")
+
+    bridge.handle([state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])])
+
+    assert step_requested(robot)
+
+
 def test_an_order_the_robot_took_from_elsewhere_is_not_marked_accepted(bridge: Bridge, robot: Robot) -> None:
     running_order(bridge, robot)
 

@@ -306,8 +306,8 @@ def test_the_digest_ignores_high_rate_fields(change: dict) -> None:
     ],
 )
 def test_events_are_what_needs_a_step_whatever_order_the_robot_holds(change: dict, is_event: bool) -> None:
-    changed = dispatch.state_digest(BASE.model_copy(update=change))
-    assert (changed.events != dispatch.state_digest(BASE).events) is is_event
+    changed, base = dispatch.state_digest(BASE.model_copy(update=change)), dispatch.state_digest(BASE)
+    assert (changed.events != base.events or changed.finished_actions != base.finished_actions) is is_event
 
 
 def test_a_robot_with_nodes_edges_or_actions_left_is_busy() -> None:
@@ -341,6 +341,26 @@ def _takes_order_only(before: State, after: State) -> bool:
             IDLE_AFTER_M0,
             robot_state(order_id="m1-n0-r0", node_states=[2], pose=(3.0, 1.0, 0.5, "map")),
             id="moving-while-taking",
+        ),
+        pytest.param(
+            robot_state(
+                order_id="m0-n0-r0",
+                last_node_sequence_id=2,
+                action_states=[("factsheet-1", ActionStatus.FINISHED), ("pick", ActionStatus.FAILED)],
+            ),
+            TAKEN_M1,
+            id="dropping-the-finished-actions-of-before",
+        ),
+        pytest.param(
+            robot_state(
+                order_id="m0-n0-r0",
+                last_node_sequence_id=2,
+                action_states=[("factsheet-1", ActionStatus.FINISHED), ("pick", ActionStatus.FINISHED)],
+            ),
+            robot_state(
+                order_id="m1-n0-r0", node_states=[2], action_states=[("factsheet-1", ActionStatus.FINISHED)]
+            ),
+            id="keeping-some-finished-actions",
         ),
     ],
 )
@@ -378,6 +398,20 @@ def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: St
             id="taking-while-an-instant-action-finishes",
         ),
         pytest.param(
+            robot_state(
+                order_id="m0-n0-r0", last_node_sequence_id=2, action_states=[("ia", ActionStatus.FINISHED)]
+            ),
+            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("ia", ActionStatus.FAILED)]),
+            id="taking-while-a-finished-action-turns-failed",
+        ),
+        pytest.param(
+            robot_state(
+                order_id="m0-n0-r0", last_node_sequence_id=2, action_states=[("ia", ActionStatus.FINISHED)]
+            ),
+            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("ib", ActionStatus.FINISHED)]),
+            id="dropping-one-finished-action-while-another-finishes",
+        ),
+        pytest.param(
             IDLE_AFTER_M0,
             robot_state(order_id="m1-n0-r0", node_states=[2], battery=12.0),
             id="taking-with-a-battery-change",
@@ -406,3 +440,9 @@ def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: St
 )
 def test_any_other_change_needs_a_step(before: State, after: State) -> None:
     assert not _takes_order_only(before, after)
+
+
+def test_a_digest_stored_without_its_finished_actions_apart_cannot_tell_and_needs_a_step() -> None:
+    before = replace(dispatch.state_digest(IDLE_AFTER_M0), finished_actions=dispatch.NO_FINISHED_ACTIONS)
+
+    assert not dispatch.takes_order_only(before, dispatch.state_digest(TAKEN_M1))
