@@ -323,6 +323,16 @@ IDLE_AFTER_M0 = robot_state(order_id="m0-n0-r0", last_node_sequence_id=2)
 TAKEN_M1 = robot_state(order_id="m1-n0-r0", node_states=[2])
 
 
+def idle_after_m0(*actions: tuple[str, ActionStatus]) -> State:
+    """IDLE_AFTER_M0 with these action states (of the order before, or instant actions)."""
+    return robot_state(order_id="m0-n0-r0", last_node_sequence_id=2, action_states=actions)
+
+
+def taken_m1(*actions: tuple[str, ActionStatus]) -> State:
+    """TAKEN_M1 with these action states."""
+    return robot_state(order_id="m1-n0-r0", node_states=[2], action_states=actions)
+
+
 def _takes_order_only(before: State, after: State) -> bool:
     return dispatch.takes_order_only(dispatch.state_digest(before), dispatch.state_digest(after))
 
@@ -343,23 +353,13 @@ def _takes_order_only(before: State, after: State) -> bool:
             id="moving-while-taking",
         ),
         pytest.param(
-            robot_state(
-                order_id="m0-n0-r0",
-                last_node_sequence_id=2,
-                action_states=[("factsheet-1", ActionStatus.FINISHED), ("pick", ActionStatus.FAILED)],
-            ),
+            idle_after_m0(("factsheet-1", ActionStatus.FINISHED), ("pick", ActionStatus.FAILED)),
             TAKEN_M1,
             id="dropping-the-finished-actions-of-before",
         ),
         pytest.param(
-            robot_state(
-                order_id="m0-n0-r0",
-                last_node_sequence_id=2,
-                action_states=[("factsheet-1", ActionStatus.FINISHED), ("pick", ActionStatus.FINISHED)],
-            ),
-            robot_state(
-                order_id="m1-n0-r0", node_states=[2], action_states=[("factsheet-1", ActionStatus.FINISHED)]
-            ),
+            idle_after_m0(("factsheet-1", ActionStatus.FINISHED), ("pick", ActionStatus.FINISHED)),
+            taken_m1(("factsheet-1", ActionStatus.FINISHED)),
             id="keeping-some-finished-actions",
         ),
     ],
@@ -394,21 +394,17 @@ def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: St
         ),
         pytest.param(
             IDLE_AFTER_M0,
-            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("ia", ActionStatus.FINISHED)]),
+            taken_m1(("ia", ActionStatus.FINISHED)),
             id="taking-while-an-instant-action-finishes",
         ),
         pytest.param(
-            robot_state(
-                order_id="m0-n0-r0", last_node_sequence_id=2, action_states=[("ia", ActionStatus.FINISHED)]
-            ),
-            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("ia", ActionStatus.FAILED)]),
+            idle_after_m0(("ia", ActionStatus.FINISHED)),
+            taken_m1(("ia", ActionStatus.FAILED)),
             id="taking-while-a-finished-action-turns-failed",
         ),
         pytest.param(
-            robot_state(
-                order_id="m0-n0-r0", last_node_sequence_id=2, action_states=[("ia", ActionStatus.FINISHED)]
-            ),
-            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("ib", ActionStatus.FINISHED)]),
+            idle_after_m0(("ia", ActionStatus.FINISHED)),
+            taken_m1(("ib", ActionStatus.FINISHED)),
             id="dropping-one-finished-action-while-another-finishes",
         ),
         pytest.param(
@@ -418,7 +414,7 @@ def test_taking_an_order_and_nothing_else_needs_no_step(before: State, after: St
         ),
         pytest.param(
             IDLE_AFTER_M0,
-            robot_state(order_id="m1-n0-r0", node_states=[2], action_states=[("hold", ActionStatus.RUNNING)]),
+            taken_m1(("hold", ActionStatus.RUNNING)),
             id="taking-with-its-action-already-running",
         ),
         pytest.param(
