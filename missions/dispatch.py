@@ -1113,8 +1113,8 @@ def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
     taking an order only: the step must see the first one end. Nor is taking an update of the order the
     robot had stopped at the end of: the route that update carries (one sent ahead that reached the robot
     late) starts running now, and its step must see that. The finished actions of the order before and of
-    instant actions, which a robot taking an order commonly drops from its state, do not count: the steps
-    of the states that showed them finish have seen them.
+    instant actions, which a robot taking an order commonly drops from its state, do not count: the state
+    that showed each one finish asked for its step already.
     """
     if not after.busy or after.events != before.events:
         return False
