@@ -9,7 +9,7 @@ from django.db import IntegrityError, transaction
 from access.choices import WriteAction
 from access.models import TOKEN_NAME_MAX_LENGTH, ApiToken, WriteRecord
 from access.selectors import api_token_for_key
-from fleet.api import UsageError
+from kit.api.errors import UsageError
 
 # The token `make run` keeps for the developer (`api_token dev`).
 DEV_TOKEN_NAME = "development"

@@ -3,8 +3,8 @@ workers with `celery worker -I bench.celery_tasks`)."""
 
 import time
 
-from fleet import livestate
 from fleet.celery import app
+from robots import livestate
 
 WAIT_TASK = "bench.wait"
 

@@ -36,8 +36,8 @@ from bench.celery_tasks import WAIT_TASK  # noqa: E402
 from bench.measure import CpuMeter, cpu_speed_ms, interleaved  # noqa: E402
 from bench.processes import running  # noqa: E402
 from bench.suite import CELERY  # noqa: E402
-from fleet import livestate  # noqa: E402
 from fleet.celery import app  # noqa: E402
+from robots import livestate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 # The step worker of deploy/Procfile first; then what it was chosen against.

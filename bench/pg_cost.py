@@ -29,10 +29,13 @@ from django.db import connection  # noqa: E402
 
 from bench.measure import cpu_speed_ms, process_sample  # noqa: E402
 from bench.robot import FakeRobot, utc_now  # noqa: E402
-from fleet import livestate  # noqa: E402
-from missions.dispatch import state_digest  # noqa: E402
-from missions.robot_step import mission_orders_accepted, robot_step  # noqa: E402
-from missions.services import mission_create  # noqa: E402
+from dispatch.held import state_digest  # noqa: E402
+from missions.robot_step import robot_step  # noqa: E402
+from missions.services import (  # noqa: E402
+    mission_create,
+    mission_orders_accepted,
+)
+from robots import livestate  # noqa: E402
 from robots.models import Robot  # noqa: E402
 from robots.services import robot_create  # noqa: E402
 from vda5050.codec import parse_state  # noqa: E402

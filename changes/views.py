@@ -22,8 +22,8 @@ from access.selectors import request_credential
 from changes.framing import Framing, Ndjson, ServerSentEvents, event_id_span
 from changes.selectors import FeedPositionExpired, FeedPositionInvalid
 from changes.stream import Opening, Watched, resume, snapshot, watch_stream
-from fleet.api import QueryValidationError
-from fleet.parsers import InputError
+from kit.api.errors import QueryValidationError
+from kit.api.parsers import InputError
 
 # The reference's, accepted: no client of ours writes status, so there is no echo of its own to hide.
 PUBLISHER_ID = "publisher_id"

@@ -28,6 +28,6 @@ def __getattr__(name: str) -> Any:
 def _replace_broken_connections(**kwargs: Any) -> None:
     """A task after a PostgreSQL restart gets a new connection instead of the dead one (CELERY_DB_REUSE_MAX
     keeps Celery's own fixup from closing connections)."""
-    from fleet.db import drop_broken_connections  # Django's apps are loaded once tasks run
+    from kit.db import drop_broken_connections  # Django's apps are loaded once tasks run
 
     drop_broken_connections()

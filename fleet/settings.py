@@ -81,7 +81,7 @@ INSTALLED_APPS = [
 
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
-    "fleet.api.body_length_middleware",
+    "kit.api.parsers.body_length_middleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -112,16 +112,16 @@ WSGI_APPLICATION = "fleet.wsgi.application"
 
 DATABASES = {
     "default": {
-        "ENGINE": "fleet.postgresql",
+        "ENGINE": "kit.postgresql",
         "NAME": env_str("FLEET_DB_NAME", "mission_dispatch"),
         "USER": env_str("FLEET_DB_USER", "postgres"),
         "PASSWORD": env_str("FLEET_DB_PASSWORD", ""),
         "HOST": env_str("FLEET_DB_HOST", "127.0.0.1"),
         "PORT": env_int("FLEET_DB_PORT", 5432),
         # Persistent connections: no connection setup per request or per task. Each API request checks
-        # its connection first (without a query unless the server sent something: `fleet.postgresql`),
+        # its connection first (without a query unless the server sent something: `kit.postgresql`),
         # so a PostgreSQL restart never fails a request once the server is back; the hot loops (bridge,
-        # steps, tasks) replace a connection only after it failed (`fleet.db.drop_broken_connections`).
+        # steps, tasks) replace a connection only after it failed (`kit.db.drop_broken_connections`).
         "CONN_MAX_AGE": None,
         "CONN_HEALTH_CHECKS": True,
         # Server-side binding lets psycopg prepare the hot statements: PostgreSQL plans them once.
@@ -156,7 +156,7 @@ REST_FRAMEWORK = {
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
     "DEFAULT_FILTER_BACKENDS": ["django_filters.rest_framework.DjangoFilterBackend"],
     "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"],
-    "DEFAULT_PARSER_CLASSES": ["fleet.parsers.JSONParser"],
+    "DEFAULT_PARSER_CLASSES": ["kit.api.parsers.JSONParser"],
     # Both read FLEET_API_AUTH per request; the first one's WWW-Authenticate makes refusals 401s.
     "DEFAULT_AUTHENTICATION_CLASSES": [
         "access.authentication.BearerTokenAuthentication",
@@ -164,7 +164,7 @@ REST_FRAMEWORK = {
     ],
     "DEFAULT_PERMISSION_CLASSES": ["access.permissions.ApiAccess"],
     "UNAUTHENTICATED_USER": None,
-    "EXCEPTION_HANDLER": "fleet.api.exception_handler",
+    "EXCEPTION_HANDLER": "kit.api.errors.exception_handler",
 }
 
 SPECTACULAR_SETTINGS = {
@@ -236,9 +236,9 @@ DATA_UPLOAD_MAX_NUMBER_FIELDS = max(1000, API_MAX_FILTER_VALUES + 100)
 # --- Redis and Celery -----------------------------------------------------------------------------
 REDIS_URL = env_str("FLEET_REDIS_URL", "redis://127.0.0.1:6379/0")
 CELERY_BROKER_URL = env_str("FLEET_CELERY_BROKER_URL", REDIS_URL)
-# kombu's Redis transport with a client reused and a fix for dropped connections (`fleet.broker`).
+# kombu's Redis transport with a client reused and a fix for dropped connections (`kit.broker`).
 if CELERY_BROKER_URL.partition("://")[0] in ("redis", "rediss"):
-    CELERY_BROKER_TRANSPORT = "fleet.broker:Transport"
+    CELERY_BROKER_TRANSPORT = "kit.broker:Transport"
 CELERY_TASK_IGNORE_RESULT = True
 CELERY_TASK_ACKS_LATE = True
 CELERY_TASK_REJECT_ON_WORKER_LOST = True
@@ -276,7 +276,7 @@ VDA5050_INTERFACE_NAME = env_str("FLEET_VDA5050_INTERFACE_NAME", "uagv")
 VDA5050_MANUFACTURER = env_str("FLEET_VDA5050_MANUFACTURER", "RobotCompany")
 VDA5050_VERSION = env_str("FLEET_VDA5050_VERSION", "2.0.0")
 
-# `plain`: a line of text per record, on stderr; `json`: a JSON object per line (fleet.logs.JsonFormatter)
+# `plain`: a line of text per record, on stderr; `json`: a JSON object per line (kit.logs.JsonFormatter)
 # on stdout, for container platforms' log collectors.
 LOG_FORMAT = env_str("FLEET_LOG_FORMAT", "plain")
 if LOG_FORMAT not in {"plain", "json"}:
@@ -286,7 +286,7 @@ LOGGING = {
     "disable_existing_loggers": False,
     "formatters": {
         "plain": {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"},
-        "json": {"()": "fleet.logs.JsonFormatter"},
+        "json": {"()": "kit.logs.JsonFormatter"},
     },
     "handlers": {
         "console": {

@@ -2,8 +2,8 @@ from django.contrib import admin
 from django.urls import include, path
 from drf_spectacular.views import SpectacularJSONAPIView, SpectacularSwaggerView
 
-from fleet.api import HealthView
 from fleet.events import EventsView
+from kit.api.health import HealthView
 from missions.api.views import BehaviorsView
 from workers.metrics import MetricsView
 

@@ -7,7 +7,7 @@ from django.http import HttpRequest, HttpResponse, QueryDict
 from django.shortcuts import render
 from django.urls import reverse
 
-from missions.vocabulary import DONE_STATES, MissionState
+from dispatch.vocabulary import DONE_STATES, MissionState
 
 # Stands for an object's name in the URL templates the page fills in (no name can make it appear twice:
 # the template is filled, not the name).

@@ -15,10 +15,10 @@ from django.utils.html import format_html
 from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
-from missions.engine import Node, TreeError, apply_route_updates, parse_tree
+from dispatch.engine import Node, TreeError, apply_route_updates, parse_tree
+from dispatch.vocabulary import MissionState, NodeKind
 from missions.models import Mission
 from missions.services import mission_cancel, mission_delete
-from missions.vocabulary import MissionState, NodeKind
 from robots.admin import call_service_for_each, delete_through_service
 from robots.models import Robot
 

@@ -1,4 +1,4 @@
-"""Django choices of the missions app, built from the vocabulary (``missions.vocabulary``).
+"""Django choices of the missions app, built from the vocabulary (``dispatch.vocabulary``).
 
 Each class has the vocabulary enum's names and values, and labels derived from the names as Django does;
 use these where Django needs choices (model fields, serializers, filters), the vocabulary elsewhere.
@@ -6,8 +6,8 @@ use these where Django needs choices (model fields, serializers, filters), the v
 
 from django.db import models
 
-from missions import vocabulary
-from missions.vocabulary import DONE_STATES
+from dispatch import vocabulary
+from dispatch.vocabulary import DONE_STATES
 from robots.choices import Lifecycle
 
 __all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionState", "NodeKind"]

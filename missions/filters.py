@@ -4,7 +4,8 @@ import django_filters as filters
 from django import forms
 from django.db.models import F, QuerySet
 
-from fleet.api import INT64_MAX, StrictFilterSet
+from kit.api.fields import INT64_MAX
+from kit.api.filters import StrictFilterSet
 from missions.choices import MissionState
 from missions.models import Mission
 

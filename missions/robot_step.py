@@ -1,12 +1,11 @@
-"""Stepping a robot: the dispatch step's I/O around the pure engine (`missions.dispatch`).
+"""Stepping a robot: the dispatch step's I/O around the pure engine (`dispatch.step`).
 
 Under the robot's row lock: load the robot, its running and next missions and its latest live state, run
 the pure step, store what it decided (with the messages, numbered and encoded, in the robot's outbox) and
-hand back what to publish. Also the bridge's write of the orders robots took (`mission_orders_accepted`).
+hand back what to publish.
 """
 
 import logging
-from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from datetime import UTC, datetime, timedelta
 from enum import Enum, auto
@@ -20,9 +19,10 @@ from django.db.backends.utils import CursorWrapper
 from django.db.models import JSONField
 from django.utils import timezone
 
-from fleet import livestate
-from fleet.db import jsonb, pipelined_transaction
-from missions import dispatch
+from dispatch.held import FINAL
+from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
+from dispatch.step import step
+from kit.db import jsonb, pipelined_transaction
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.rows import (
@@ -32,6 +32,7 @@ from missions.rows import (
     mission_db_values,
     mission_row_delete,
 )
+from robots import livestate
 from robots.choices import InstantActionsKey, SettingSource
 from robots.models import InstantAction, Robot
 from robots.selectors import robot_unfinished_instant_actions
@@ -47,7 +48,7 @@ logger = logging.getLogger(__name__)
 # read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
 # more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
 # lock what they read until the step commits.
-_FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(dispatch.FINAL))
+_FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
         r.instant_actions_key_source = '{SettingSource.OPERATOR}',
@@ -60,7 +61,7 @@ ROBOT_FOR_STEP_SQL = f"""
         )
     FROM {Robot._meta.db_table} r WHERE r.name = %s FOR UPDATE OF r
 """
-MISSION_RECORD_FIELDS = tuple(f.name for f in fields(dispatch.MissionRecord))
+MISSION_RECORD_FIELDS = tuple(f.name for f in fields(MissionRecord))
 # Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
 MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
 CURRENT_MISSIONS_SQL = f"""
@@ -100,9 +101,9 @@ class StepOutcome:
 
     address: RobotAddress | None = None
     instant_actions_key: str = "actions"
-    messages: list[dispatch.Outgoing] = field(default_factory=list)
+    messages: list[Outgoing] = field(default_factory=list)
     notifies: list[tuple[str, str]] = field(default_factory=list)
-    finished: list[dispatch.MissionRecord] = field(default_factory=list)
+    finished: list[MissionRecord] = field(default_factory=list)
     rejections: int = 0
     header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
     # What to publish, in this order: `messages` encoded, after those of an earlier step that may not
@@ -272,7 +273,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         published,
     )
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
-    view = dispatch.RobotView(
+    view = RobotView(
         name=name,
         lifecycle=lifecycle,
         state=robot_state,
@@ -285,7 +286,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     ended_a_mission = False
     while True:
         mission = upcoming.pop(0) if upcoming else None
-        result = dispatch.step(
+        result = step(
             now=now,
             robot=view,
             state=state,
@@ -295,7 +296,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             settings=dispatch_settings(),
         )
         _store_actions(name, actions, result.actions)
-        actions = [a for a in result.actions if a.status not in dispatch.FINAL]
+        actions = [a for a in result.actions if a.status not in FINAL]
         _store_compatibility(name, result, now)
         if result.instant_actions_key is not None:
             outcome.instant_actions_key = result.instant_actions_key
@@ -327,57 +328,17 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
 
 
-# A robot taking an order needs no step (`dispatch.takes_order_only`), only this flag, which keeps beat's
-# sweep from sending the order again. It holds the order at this update or a later one. Running missions
-# that another transaction holds (a step, a service) are skipped, not waited for.
-ACCEPT_ORDERS_SQL = f"""
-    WITH taken AS (
-        SELECT * FROM unnest(%s::varchar[], %s::text[], %s::bigint[]) AS t(robot, order_id, order_update_id)
-    ), free AS (
-        SELECT name FROM {Mission._meta.db_table}
-        WHERE robot IN (SELECT robot FROM taken) AND state = '{MissionState.RUNNING}' AND NOT order_accepted
-        FOR NO KEY UPDATE SKIP LOCKED
-    )
-    UPDATE {Mission._meta.db_table} AS m SET order_accepted = true, updated_at = %s
-    FROM taken AS t
-    WHERE m.name IN (SELECT name FROM free) AND m.robot = t.robot
-      AND m."order"->>'orderId' = t.order_id AND (m."order"->>'orderUpdateId')::bigint <= t.order_update_id
-"""
-
-
-def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
-    """Mark accepted the running missions' orders that robots took: robot -> (orderId, orderUpdateId).
-
-    One statement, whatever the number of robots, so that it holds the rows it locks only while it runs. A
-    mission a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
-    the steps of those robots queued behind the step it waited for. A skipped acceptance costs nothing:
-    the sweep resends an order only on a state that does not hold it. An order that is not the mission's
-    current one (a later update is already out, or the order came from elsewhere) matches nothing.
-    """
-    robots = list(orders)
-    with connection.cursor() as cursor:
-        cursor.execute(
-            ACCEPT_ORDERS_SQL,
-            [
-                robots,
-                [orders[robot][0] for robot in robots],
-                [orders[robot][1] for robot in robots],
-                timezone.now(),
-            ],
-        )
-
-
-def _current_missions(robot: str, *, count: int) -> list[dispatch.MissionRecord]:
+def _current_missions(robot: str, *, count: int) -> list[MissionRecord]:
     """The robot's RUNNING mission, then its queue in FIFO order, locked."""
     with connection.cursor() as cursor:
         cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
         return _mission_records(cursor.fetchall())
 
 
-def _mission_records(rows: list[tuple[Any, ...]]) -> list[dispatch.MissionRecord]:
+def _mission_records(rows: list[tuple[Any, ...]]) -> list[MissionRecord]:
     """CURRENT_MISSIONS_SQL's rows as the engine's records."""
     return [
-        dispatch.MissionRecord(
+        MissionRecord(
             *(
                 orjson.loads(value) if is_json and value is not None else value
                 for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
@@ -387,8 +348,8 @@ def _mission_records(rows: list[tuple[Any, ...]]) -> list[dispatch.MissionRecord
     ]
 
 
-def dispatch_settings() -> dispatch.DispatchSettings:
-    return dispatch.DispatchSettings(
+def dispatch_settings() -> DispatchSettings:
+    return DispatchSettings(
         order_resend=timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS),
         instant_action_resend=timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS),
         start_deviation_xy=settings.DISPATCH_START_NODE_DEVIATION,
@@ -407,7 +368,7 @@ def _live_state(name: str) -> tuple[State | None, datetime | None, dict[str, int
         return None, None, published
 
 
-def _store_mission(before: dispatch.MissionRecord, after: dispatch.MissionRecord) -> None:
+def _store_mission(before: MissionRecord, after: MissionRecord) -> None:
     """Write the fields the step changed, in one UPDATE."""
     changed = {
         name: getattr(after, name)
@@ -441,7 +402,7 @@ COMPATIBILITY_SQL = f"""
 """
 
 
-def _store_compatibility(name: str, result: dispatch.StepResult, now: datetime) -> None:
+def _store_compatibility(name: str, result: StepResult, now: datetime) -> None:
     """Record the compatibility rules the step applied (each rule once per robot: when it first applied)
     and the instant actions key it learned."""
     if not result.rules_applied:
@@ -456,8 +417,8 @@ def _store_compatibility(name: str, result: dispatch.StepResult, now: datetime) 
         cursor.execute(COMPATIBILITY_SQL, [jsonb(rules), key, key, timezone.now(), name])
 
 
-def _action_record(action: InstantAction) -> dispatch.ActionRecord:
-    return dispatch.ActionRecord(**{f.name: getattr(action, f.name) for f in fields(dispatch.ActionRecord)})
+def _action_record(action: InstantAction) -> ActionRecord:
+    return ActionRecord(**{f.name: getattr(action, f.name) for f in fields(ActionRecord)})
 
 
 # The step's writes are plain SQL: the ORM's bulk writes and deletes open transaction blocks of their own,
@@ -475,7 +436,7 @@ UPSERT_ACTIONS_SQL = f"""
 
 
 def _store_actions(
-    robot: str, before: list[dispatch.ActionRecord], after: list[dispatch.ActionRecord]
+    robot: str, before: list[ActionRecord], after: list[ActionRecord]
 ) -> None:
     """Insert new instant actions and save the ones whose status or send time changed, in one statement."""
     known = {a.action_id: a for a in before}

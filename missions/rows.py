@@ -9,7 +9,7 @@ from typing import Any
 from django.db import connection
 from django.db.models import JSONField
 
-from fleet.db import jsonb
+from kit.db import jsonb
 from missions.models import Mission
 
 MISSION_FIELDS = {field.name: field for field in Mission._meta.concrete_fields}

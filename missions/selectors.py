@@ -9,12 +9,13 @@ from django.db.models import DateTimeField, ExpressionWrapper, F, Q, QuerySet, V
 from django.db.models.fields.json import KT
 from django.utils import timezone
 
-from fleet import livestate
-from fleet.api import QueryValidationError, object_get
-from missions import dispatch
+from dispatch.held import order_finished, order_lacked
+from dispatch.vocabulary import MissionState
+from kit.api.errors import QueryValidationError
+from kit.api.rows import object_get
 from missions.filters import MissionFilter
 from missions.models import Mission
-from missions.vocabulary import MissionState
+from robots import livestate
 from robots.models import InstantAction, Robot
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
@@ -105,13 +106,13 @@ def robots_stalled(*, now: datetime | None = None) -> list[str]:
             robot
             for robot, order_id, update_id in rows
             if update_id is not None
-            and dispatch.order_finished(held[robot], order_id=order_id, update_id=int(update_id))
+            and order_finished(held[robot], order_id=order_id, update_id=int(update_id))
         }
     )
 
 
 def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
-    """The robots of `missions` that lack their mission's order (`dispatch.order_lacked`)."""
+    """The robots of `missions` that lack their mission's order (`order_lacked`)."""
     rows = list(
         missions.values_list("robot", "order_sent_at", KT("order__orderId"), KT("order__orderUpdateId"))
     )
@@ -119,7 +120,7 @@ def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
     return [
         robot
         for robot, sent_at, order_id, update_id in rows
-        if dispatch.order_lacked(
+        if order_lacked(
             held[robot],
             order_id=order_id,
             update_id=-1 if update_id is None else int(update_id),

@@ -16,10 +16,12 @@ from django.utils import timezone
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record
-from fleet.api import ObjectError, UsageError, lock_row, object_name_check, object_name_for_create
-from fleet.wake import wake_robot
+from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
+from kit.api.errors import ObjectError, UsageError
+from kit.api.names import object_name_check, object_name_for_create
+from kit.api.rows import lock_row
+from kit.wake import wake_robot
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
-from missions.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from missions.models import Mission
 from missions.rows import MISSION_FIELDS, mission_columns, mission_db_values, mission_row_delete
 
@@ -227,3 +229,43 @@ MISSION_INSERT_SQL = f"""
     )
     SELECT queue_position, mission_queued_behind(robot, queue_position) FROM new
 """
+
+
+# A robot taking an order needs no step (`takes_order_only`), only this flag, which keeps beat's
+# sweep from sending the order again. It holds the order at this update or a later one. Running missions
+# that another transaction holds (a step, a service) are skipped, not waited for.
+ACCEPT_ORDERS_SQL = f"""
+    WITH taken AS (
+        SELECT * FROM unnest(%s::varchar[], %s::text[], %s::bigint[]) AS t(robot, order_id, order_update_id)
+    ), free AS (
+        SELECT name FROM {Mission._meta.db_table}
+        WHERE robot IN (SELECT robot FROM taken) AND state = '{MissionState.RUNNING}' AND NOT order_accepted
+        FOR NO KEY UPDATE SKIP LOCKED
+    )
+    UPDATE {Mission._meta.db_table} AS m SET order_accepted = true, updated_at = %s
+    FROM taken AS t
+    WHERE m.name IN (SELECT name FROM free) AND m.robot = t.robot
+      AND m."order"->>'orderId' = t.order_id AND (m."order"->>'orderUpdateId')::bigint <= t.order_update_id
+"""
+
+
+def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
+    """Mark accepted the running missions' orders that robots took: robot -> (orderId, orderUpdateId).
+
+    One statement, whatever the number of robots, so that it holds the rows it locks only while it runs. A
+    mission a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
+    the steps of those robots queued behind the step it waited for. A skipped acceptance costs nothing:
+    the sweep resends an order only on a state that does not hold it. An order that is not the mission's
+    current one (a later update is already out, or the order came from elsewhere) matches nothing.
+    """
+    robots = list(orders)
+    with connection.cursor() as cursor:
+        cursor.execute(
+            ACCEPT_ORDERS_SQL,
+            [
+                robots,
+                [orders[robot][0] for robot in robots],
+                [orders[robot][1] for robot in robots],
+                timezone.now(),
+            ],
+        )

@@ -14,7 +14,8 @@ from django.utils.html import format_html, format_html_join
 from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
-from fleet.api import UsageError, object_name_validator
+from kit.api.errors import UsageError
+from kit.api.names import object_name_validator
 from robots.api.serializers import MapActionRequestSerializer, RobotSpecSerializer, RobotVda5050Serializer
 from robots.choices import MapAction, SettingSource, TeleopAction
 from robots.models import Robot, RobotMapAction

@@ -1,12 +1,12 @@
 """Enumerations of the robots app, spelled as in the reference API.
 
-``Lifecycle`` and ``RobotState`` are the vocabulary's (``missions.vocabulary``) as Django choices: the
+``Lifecycle`` and ``RobotState`` are the vocabulary's (``dispatch.vocabulary``) as Django choices: the
 vocabulary enum's names and values, and labels derived from the names as Django does.
 """
 
 from django.db import models
 
-from missions import vocabulary
+from dispatch import vocabulary
 from vda5050.versions import SUPPORTED_VERSIONS
 
 Lifecycle = models.TextChoices("Lifecycle", [(m.name, m.value) for m in vocabulary.Lifecycle])

@@ -7,7 +7,7 @@ from django import forms
 from django.conf import settings
 from django.db.models import QuerySet
 
-from fleet.api import StrictFilterSet
+from kit.api.filters import StrictFilterSet
 from robots.choices import AgvClass, RobotState
 from robots.models import Robot
 

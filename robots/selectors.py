@@ -5,7 +5,8 @@ from typing import Any
 
 from django.db.models import OuterRef, QuerySet
 
-from fleet.api import QueryValidationError, object_get
+from kit.api.errors import QueryValidationError
+from kit.api.rows import object_get
 from robots.choices import MapAction
 from robots.filters import RobotFilter
 from robots.models import InstantAction, Robot

@@ -10,11 +10,13 @@ from django.db import IntegrityError, connection, transaction
 
 from access.choices import WriteAction
 from access.services import write_record
-from fleet import livestate
-from fleet.api import ObjectError, UsageError, lock_row, object_name_for_create
-from fleet.wake import wake_robot
-from missions.choices import MissionState
+from dispatch.vocabulary import MissionState
+from kit.api.errors import ObjectError, UsageError
+from kit.api.names import object_name_for_create
+from kit.api.rows import lock_row
+from kit.wake import wake_robot
 from missions.models import Mission
+from robots import livestate
 from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, MapAction, SettingSource, TeleopAction
 from robots.models import InstantAction, Robot
 from vda5050.errors import ProtocolError
@@ -89,7 +91,7 @@ def robot_delete(*, actor: str, robot: Robot) -> Robot | None:
     return None
 
 
-# Plain SQL: the dispatch step deletes robots inside `fleet.db.pipelined_transaction`, where the ORM's
+# Plain SQL: the dispatch step deletes robots inside `kit.db.pipelined_transaction`, where the ORM's
 # delete (a transaction block of its own) is not allowed. A robot's instant actions go with it; its
 # missions stay (a mission names its robot, and fails with it).
 ROBOT_DELETE_SQL = f"""

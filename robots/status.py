@@ -10,8 +10,8 @@ from typing import Any
 from django.conf import settings
 from django.db import connection, transaction
 
-from fleet import livestate
-from fleet.wake import request_steps
+from kit.wake import request_steps
+from robots import livestate
 from robots.choices import SettingSource
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, instant_action

@@ -5,8 +5,8 @@ from typing import Any
 import factory
 from django.utils import timezone
 
+from dispatch.engine import initial_node_status, parse_tree
 from missions.choices import FailureCategory, MissionState
-from missions.engine import initial_node_status, parse_tree
 from missions.models import Mission
 from robots.models import Robot
 

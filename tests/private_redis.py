@@ -11,7 +11,7 @@ from typing import Self
 import redis
 from django.conf import settings
 
-from fleet import livestate
+from robots import livestate
 
 
 def free_port() -> int:
@@ -78,7 +78,7 @@ class PrivateRedis:
 
 @contextmanager
 def live_state_in(url: str) -> Iterator[None]:
-    """This process's live state (`fleet.livestate`) and step requests in the Redis at `url`."""
+    """This process's live state (`robots.livestate`) and step requests in the Redis at `url`."""
     before = settings.REDIS_URL
 
     def switch(to: str) -> None:

@@ -1,4 +1,4 @@
-"""The layers of pyproject.toml's [tool.importlinter] contracts hold: workers -> services -> pure cores."""
+"""The import-linter contracts of pyproject.toml hold: roof -> edges -> apps -> kit -> pure wings."""
 
 import subprocess
 import sys

@@ -2,8 +2,8 @@
 
 Per state message it costs one parse and one pipelined Redis script call; the database sees one batched
 UPDATE per flush period for the robots whose status changed, and a step runs only when something the
-engine cares about changed (`missions.dispatch.state_digest`). A robot that only took the order its last
-step sent needs no step either (`missions.dispatch.takes_order_only`): the flush marks the order accepted,
+engine cares about changed (`dispatch.held.state_digest`). A robot that only took the order its last
+step sent needs no step either (`dispatch.held.takes_order_only`): the flush marks the order accepted,
 so that the sweep does not send it again. The bridge runs no step itself: it queues them for the Celery
 step workers (`workers.steps.request_steps`), one request per batch of states. Several bridges may run at
 once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
@@ -29,11 +29,11 @@ import paho.mqtt.client as mqtt
 from django.conf import settings
 from django.db import DatabaseError, connections
 
-from fleet import livestate
-from fleet.db import drop_broken_connections, jsonb
-from missions.dispatch import StateDigest, state_digest, takes_order_only
-from missions.robot_step import mission_orders_accepted
+from dispatch.held import StateDigest, state_digest, takes_order_only
+from kit.db import drop_broken_connections, jsonb
 from missions.selectors import robots_with_missions
+from missions.services import mission_orders_accepted
+from robots import livestate
 from robots.choices import AgvClass, SettingSource
 from robots.models import Robot
 from robots.status import robot_protocol_version_learn, robot_status_write, robots_came_online

@@ -26,7 +26,7 @@ from rest_framework.renderers import BaseRenderer
 from rest_framework.request import Request
 from rest_framework.views import APIView
 
-from fleet import livestate
+from robots import livestate
 
 logger = logging.getLogger(__name__)
 

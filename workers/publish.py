@@ -2,8 +2,8 @@
 
 import redis
 
-from fleet import livestate
 from missions.robot_step import WireMessage
+from robots import livestate
 from vda5050.topics import RobotAddress, topic_for
 from workers import metrics
 from workers.mqtt import publisher

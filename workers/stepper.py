@@ -10,12 +10,12 @@ import sys
 import time
 from collections.abc import Callable
 
+from celery import current_app as app  # the roof's (fleet.celery), loaded with the settings
 from django.conf import settings
 
-from fleet import livestate
-from fleet.celery import app
-from fleet.db import drop_broken_connections
+from kit.db import drop_broken_connections
 from missions.robot_step import robot_step
+from robots import livestate
 from workers import metrics
 from workers.publish import publish
 

@@ -3,7 +3,7 @@
 Whoever asks (the bridge for a state that changed what the engine reads, the API for a change of a
 mission or robot, beat for time that passed) goes through `request_steps`. A robot whose step is already
 queued gets no second one; its marker is cleared when its step reads the robot's state
-(`fleet.livestate.state_for_step`), so a change that arrives during the step queues one more. A task
+(`robots.livestate.state_for_step`), so a change that arrives during the step queues one more. A task
 carries several robots when a bridge batch or a sweep asks for several: Celery's cost per task is of the
 order of a step's own.
 """
@@ -18,10 +18,10 @@ from collections.abc import Iterable
 import kombu
 import kombu.exceptions
 import redis
+from celery import current_app as app  # the roof's (fleet.celery), loaded with the settings
 from django.conf import settings
 
-from fleet import livestate
-from fleet.celery import app
+from robots import livestate
 
 logger = logging.getLogger(__name__)
 

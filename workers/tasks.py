@@ -10,7 +10,7 @@ from django.conf import settings
 from django.db import connections
 
 from changes.services import changes_trim
-from fleet.db import drop_broken_connections
+from kit.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished
 from robots.status import robot_check_heartbeats

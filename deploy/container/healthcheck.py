@@ -40,7 +40,7 @@ def services_answer() -> None:
     django.setup()
     from django.db import connection
 
-    from fleet import livestate
+    from robots import livestate
 
     with connection.cursor() as cursor:
         cursor.execute("SELECT 1")

@@ -9,25 +9,22 @@ from django.conf import settings
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
-from fleet.api import (
+from dispatch.vocabulary import NodeKind
+from kit.api.fields import (
     MAX_SECONDS,
     JsonBooleanField,
     JsonIntegerField,
     JsonStringField,
     NumberField,
     ObjectNameField,
-    ObjectNameSerializer,
-    Pose2DSerializer,
-    SpecSerializer,
-    StrictSerializer,
     validate_free_json,
     validate_int64,
     validate_positive,
 )
+from kit.api.serializers import ObjectNameSerializer, Pose2DSerializer, SpecSerializer, StrictSerializer
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
-from missions.vocabulary import NodeKind
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
 DEFAULT_NOTIFY_TIMEOUT = 30

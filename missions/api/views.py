@@ -17,7 +17,9 @@ from rest_framework.views import APIView
 from access.authentication import request_actor
 from changes.choices import ChangeKind
 from changes.views import AnyAccept, Source, watch_response
-from fleet.api import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request, body_validated
+from dispatch.vocabulary import NodeKind
+from kit.api.schema import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request
+from kit.api.serializers import body_validated
 from missions.api.serializers import (
     NODE_KIND_SERIALIZERS,
     MissionCreateSerializer,
@@ -29,7 +31,6 @@ from missions.filters import MissionFilter
 from missions.models import Mission
 from missions.selectors import mission_get, mission_list
 from missions.services import mission_cancel, mission_create, mission_delete, mission_update_routes
-from missions.vocabulary import NodeKind
 
 # What the streams show of missions (GET /mission/watch, GET /events): GET /mission's filters, GET
 # /mission/{name}'s JSON.

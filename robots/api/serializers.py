@@ -6,18 +6,15 @@ from django.conf import settings
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
-from fleet.api import (
+from kit.api.fields import (
     MAX_SECONDS,
     JsonBooleanField,
     JsonStringField,
     NumberField,
     ObjectNameField,
-    ObjectNameSerializer,
-    Pose2DSerializer,
-    SpecSerializer,
-    StrictSerializer,
     validate_positive,
 )
+from kit.api.serializers import ObjectNameSerializer, Pose2DSerializer, SpecSerializer, StrictSerializer
 from robots.choices import (
     AgvClass,
     InstantActionsKey,

@@ -11,13 +11,9 @@ from rest_framework.response import Response
 from access.authentication import request_actor
 from changes.choices import ChangeKind
 from changes.views import AnyAccept, Source, watch_response
-from fleet.api import (
-    DETAIL_RESPONSE,
-    SCHEMA_ERROR_EXAMPLE,
-    QueryValidationError,
-    bad_request,
-    body_validated,
-)
+from kit.api.errors import QueryValidationError
+from kit.api.schema import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request
+from kit.api.serializers import body_validated
 from robots.api.serializers import (
     MapActionRequestSerializer,
     MapActionSerializer,

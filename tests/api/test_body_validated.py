@@ -1,12 +1,12 @@
-"""fleet.api.body_validated: one shared serializer per class gives every request, in every thread, what a
-fresh serializer's is_valid() gives."""
+"""kit.api.serializers.body_validated: one shared serializer per class gives every request, in every
+thread, what a fresh serializer's is_valid() gives."""
 
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 from rest_framework.exceptions import ValidationError
 
-from fleet.api import body_validated
+from kit.api.serializers import body_validated
 from missions.api.serializers import MissionCreateSerializer
 
 THREADS = 8

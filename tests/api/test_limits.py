@@ -8,7 +8,8 @@ import pytest
 import requests
 from django.conf import settings
 
-from fleet.api import MAX_SECONDS, OBJECT_NAME_MAX_LENGTH
+from kit.api.fields import MAX_SECONDS
+from kit.api.names import OBJECT_NAME_MAX_LENGTH
 from missions.api.serializers import MAX_NOTIFY_TIMEOUT
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission

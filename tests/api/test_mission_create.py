@@ -5,8 +5,8 @@ import re
 
 import pytest
 
-from fleet import livestate
 from missions.models import Mission
+from robots import livestate
 from tests.api.readme import README_MISSIONS
 from tests.factories import MissionFactory
 from tests.private_redis import PrivateRedis, live_state_in
@@ -446,7 +446,7 @@ def test_bodies_that_are_no_mission_get_drfs_exact_errors(api, raw, error):
 
 
 def test_an_invalid_body_leaves_nothing_behind_for_the_next_one(api):
-    """Every request is validated by the same serializer instance (fleet.api.body_validated)."""
+    """Every request is validated by the same serializer instance (kit.api.serializers.body_validated)."""
     api.post("/mission", mission({"move": {"distance": "x"}}, route(extra=1), name="bad"))
 
     response = api.post("/mission", mission(route(name="go"), name="good"))

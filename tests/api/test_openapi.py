@@ -10,7 +10,8 @@ from drf_spectacular.drainage import GENERATOR_STATS
 from drf_spectacular.generators import SchemaGenerator
 from drf_spectacular.validation import validate_schema
 
-from fleet.api import MAX_SECONDS, OBJECT_NAME_MAX_LENGTH
+from kit.api.fields import MAX_SECONDS
+from kit.api.names import OBJECT_NAME_MAX_LENGTH
 from missions.api.serializers import MAX_NOTIFY_TIMEOUT
 from tests.api.readme import README_MISSIONS, README_ROBOT
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from fleet import livestate
+from robots import livestate
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.factories import TEST_ACTOR

@@ -3,9 +3,9 @@
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from fleet import livestate
 from missions.robot_step import robot_step
 from missions.services import mission_create
+from robots import livestate
 from robots.models import Robot
 from tests.dispatch.builders import robot_state
 from tests.factories import TEST_ACTOR

@@ -11,8 +11,8 @@ import pytest
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
-from fleet import livestate
 from missions.models import Mission
+from robots import livestate
 from robots.choices import AgvClass
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST

@@ -6,8 +6,8 @@ from datetime import timedelta
 import orjson
 import pytest
 
-from fleet import livestate
 from missions.robot_step import robot_step
+from robots import livestate
 from robots.models import InstantAction, Robot
 from robots.services import instant_action
 from tests.bridge.test_robot_step import NOW, MakeRobot, put_state

@@ -12,7 +12,8 @@ from django.utils import timezone
 from changes.choices import ChangeKind
 from changes.models import Change
 from missions.models import Mission
-from missions.robot_step import mission_orders_accepted, robot_step
+from missions.robot_step import robot_step
+from missions.services import mission_orders_accepted
 from robots.models import Robot
 from tests.bridge.test_robot_step import create, put_state
 from vda5050.models import OrderContent

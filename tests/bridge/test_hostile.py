@@ -14,7 +14,7 @@ from django.db import connection
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fleet import livestate
+from robots import livestate
 from robots.models import Robot
 from tests.bridge.hostile import SUBSCRIBED, Case, corpus, history
 from tests.bridge.messages import connection_message, state_message, step_requested, topic

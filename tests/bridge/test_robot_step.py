@@ -18,12 +18,12 @@ from django.utils import timezone
 
 from changes.choices import ChangeKind
 from changes.models import Change
-from fleet import livestate
+from dispatch.held import state_digest
 from missions.choices import FailureCategory, Lifecycle, MissionState
-from missions.dispatch import state_digest
 from missions.models import Mission
 from missions.robot_step import StepOutcome, robot_step
 from missions.services import mission_cancel, mission_create, mission_delete
+from robots import livestate
 from robots.choices import RobotState
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, robot_delete

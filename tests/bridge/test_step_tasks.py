@@ -6,11 +6,11 @@ from collections.abc import Callable
 
 import pytest
 
-from fleet import livestate
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import StepOutcome, robot_step
 from missions.services import mission_create
+from robots import livestate
 from robots.models import Robot
 from tests.bridge.messages import steps_queued
 from tests.bridge.test_robot_step import put_state

@@ -10,7 +10,7 @@ import orjson
 import pytest
 from django.conf import settings
 
-from fleet import livestate
+from robots import livestate
 from tests.private_redis import PrivateRedis, live_state_in
 from tests.waiting import wait_for
 from workers import steps

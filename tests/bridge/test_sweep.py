@@ -7,8 +7,8 @@ from datetime import timedelta
 from django.conf import settings
 from django.utils import timezone
 
+from dispatch.held import ORDER_ECHO
 from missions.choices import MissionState
-from missions.dispatch import ORDER_ECHO
 from missions.models import Mission
 from missions.robot_step import robot_step
 from missions.selectors import STALLED_MISSION_SECONDS, robots_due_for_step, robots_stalled

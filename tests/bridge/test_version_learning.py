@@ -6,7 +6,7 @@ from datetime import timedelta
 import orjson
 import pytest
 
-from fleet import livestate
+from robots import livestate
 from robots.models import Robot
 from tests.bridge.messages import T0, step_requested
 from tests.dispatch.builders import robot_state

@@ -7,8 +7,8 @@ import subprocess
 import pytest
 import yaml
 
-from fleet import livestate
-from missions.vocabulary import MissionState
+from dispatch.vocabulary import MissionState
+from robots import livestate
 from tests.deploy.layout import DEPLOY, tool
 from tests.factories import MissionFactory, RobotFactory
 from workers import metrics

@@ -13,8 +13,11 @@ from typing import Any
 
 import orjson
 
-from missions import dispatch, engine
-from missions.vocabulary import Lifecycle, MissionState, RobotState
+from dispatch import engine
+from dispatch.held import FINAL
+from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, RobotView, StepResult
+from dispatch.step import step
+from dispatch.vocabulary import Lifecycle, MissionState, RobotState
 from tests.vda5050.schemas import VERSIONS, validate_message
 from vda5050.codec import encode, header_for, utc_timestamp
 from vda5050.models import (
@@ -42,7 +45,7 @@ from vda5050.topics import RobotAddress
 NOW = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
 ROBOT = "carter01"
 MISSION = "m1"
-SETTINGS = dispatch.DispatchSettings(
+SETTINGS = DispatchSettings(
     order_resend=timedelta(seconds=3), instant_action_resend=timedelta(seconds=5), start_deviation_xy=0.5
 )
 POSE = (1.0, 2.0, 0.5, "map")
@@ -82,7 +85,7 @@ def sequence(name: str, parent: str = engine.ROOT) -> dict[str, Any]:
     return {"name": name, "parent": parent, "sequence": {}}
 
 
-def mission(*tree: dict[str, Any], **fields: Any) -> dispatch.MissionRecord:
+def mission(*tree: dict[str, Any], **fields: Any) -> MissionRecord:
     """A queued mission of `tree` (default: one route `r`), as mission_create stores it."""
     mission_tree = list(tree) or [route("r")]
     defaults: dict[str, Any] = {
@@ -107,10 +110,10 @@ def mission(*tree: dict[str, Any], **fields: Any) -> dispatch.MissionRecord:
         "order_accepted": False,
         "attempts": {},
     }
-    return dispatch.MissionRecord(**(defaults | fields))
+    return MissionRecord(**(defaults | fields))
 
 
-def robot_view(**fields: Any) -> dispatch.RobotView:
+def robot_view(**fields: Any) -> RobotView:
     defaults: dict[str, Any] = {
         "name": ROBOT,
         "lifecycle": Lifecycle.ALIVE,
@@ -118,7 +121,7 @@ def robot_view(**fields: Any) -> dispatch.RobotView:
         "online": True,
         "battery_critical_level": 10.0,
     }
-    return dispatch.RobotView(**(defaults | fields))
+    return RobotView(**(defaults | fields))
 
 
 def instant_action(
@@ -127,8 +130,8 @@ def instant_action(
     *,
     status: str | None = None,
     sent_at: datetime | None = None,
-) -> dispatch.ActionRecord:
-    return dispatch.ActionRecord(
+) -> ActionRecord:
+    return ActionRecord(
         action_id=action_id or f"{ROBOT}-{action_type}-1",
         action_type=action_type,
         mission=None,
@@ -246,16 +249,16 @@ def finished(order: OrderContent | dict[str, Any], **fields: Any) -> State:
 def checked_step(
     *,
     state: State | None,
-    mission: dispatch.MissionRecord | None,
-    robot: dispatch.RobotView | None = None,
-    actions: list[dispatch.ActionRecord] | None = None,
+    mission: MissionRecord | None,
+    robot: RobotView | None = None,
+    actions: list[ActionRecord] | None = None,
     now: datetime = NOW,
     state_arrived_at: datetime | None = None,
-    settings: dispatch.DispatchSettings = SETTINGS,
-) -> dispatch.StepResult:
-    """`dispatch.step`, with every emitted message checked against every schema version. The state arrived
+    settings: DispatchSettings = SETTINGS,
+) -> StepResult:
+    """`step`, with every emitted message checked against every schema version. The state arrived
     at `state_arrived_at`, by default just now."""
-    result = dispatch.step(
+    result = step(
         now=now,
         robot=robot or robot_view(),
         state=state,
@@ -276,11 +279,11 @@ def check_schema(content: OrderContent | InstantActionsContent, header_id: int, 
         validate_message(topic, version, orjson.loads(encode(content, header)))
 
 
-def orders_sent(result: dispatch.StepResult) -> list[OrderContent]:
+def orders_sent(result: StepResult) -> list[OrderContent]:
     return [m.content for m in result.messages if isinstance(m.content, OrderContent)]
 
 
-def instant_actions_sent(result: dispatch.StepResult) -> list[Action]:
+def instant_actions_sent(result: StepResult) -> list[Action]:
     return [
         a for m in result.messages if isinstance(m.content, InstantActionsContent) for a in m.content.actions
     ]
@@ -296,15 +299,15 @@ def wire(content: OrderContent | InstantActionsContent) -> bytes:
 class Dispatcher:
     """Plays the caller (`robot_step`): feeds each result back, keeping only unfinished instant actions."""
 
-    mission: dispatch.MissionRecord | None
-    robot: dispatch.RobotView = field(default_factory=robot_view)
-    actions: list[dispatch.ActionRecord] = field(default_factory=list)
+    mission: MissionRecord | None
+    robot: RobotView = field(default_factory=robot_view)
+    actions: list[ActionRecord] = field(default_factory=list)
     now: datetime = NOW
-    results: list[dispatch.StepResult] = field(default_factory=list)
+    results: list[StepResult] = field(default_factory=list)
 
     def step(
         self, state: State | None, *, after: float = 0.0, arrived_at: datetime | None = None
-    ) -> dispatch.StepResult:
+    ) -> StepResult:
         """One step `after` seconds later than the previous one, of a state that arrived at `arrived_at`
         (by default at the step)."""
         self.now += timedelta(seconds=after)
@@ -317,7 +320,7 @@ class Dispatcher:
             state_arrived_at=arrived_at,
         )
         self.mission = result.mission
-        self.actions = [a for a in result.actions if a.status not in dispatch.FINAL]
+        self.actions = [a for a in result.actions if a.status not in FINAL]
         self.robot = replace(self.robot, state=result.robot_state)
         self.results.append(result)
         return result
@@ -340,5 +343,5 @@ def started(*tree: dict[str, Any], state: State = IDLE_STATE, **fields: Any) -> 
     return dispatcher
 
 
-def cancel_actions(actions: Iterable[dispatch.ActionRecord]) -> list[dispatch.ActionRecord]:
+def cancel_actions(actions: Iterable[ActionRecord]) -> list[ActionRecord]:
     return [a for a in actions if a.action_type == ActionType.CANCEL_ORDER]

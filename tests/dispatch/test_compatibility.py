@@ -6,7 +6,7 @@ from datetime import timedelta
 
 import pytest
 
-from missions.vocabulary import MissionState
+from dispatch.vocabulary import MissionState
 from tests.dispatch.builders import (
     NOW,
     checked_step,

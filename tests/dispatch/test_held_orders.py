@@ -5,7 +5,7 @@ from datetime import UTC, datetime, timedelta
 
 import pytest
 
-from missions.dispatch import ORDER_ECHO, HeldOrder, order_finished, order_lacked
+from dispatch.held import ORDER_ECHO, HeldOrder, order_finished, order_lacked
 
 SENT = datetime(2026, 11, 26, 12, 0, tzinfo=UTC)
 LATER = SENT + ORDER_ECHO  # a state that arrived then would hold the order, had the robot got it

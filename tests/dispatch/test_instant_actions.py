@@ -4,7 +4,7 @@ from datetime import timedelta
 
 import pytest
 
-from missions.vocabulary import MissionState, RobotState
+from dispatch.vocabulary import MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,

@@ -5,8 +5,10 @@ from datetime import timedelta
 
 import pytest
 
-from missions import dispatch, engine
-from missions.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
+from dispatch import engine
+from dispatch.records import ActionRecord
+from dispatch.step import DEADLINE_PASSED, PAUSE_ORDER, TIMED_OUT
+from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,
@@ -100,10 +102,10 @@ def test_a_timed_out_mission_fails_and_cancels_the_robots_active_order() -> None
     ended = dispatcher.mission
     assert (ended.state, ended.failure_reason, ended.failure_category) == (
         MissionState.FAILED,
-        dispatch.TIMED_OUT,
+        TIMED_OUT,
         FailureCategory.TIMEOUT,
     )
-    assert ended.node_status["r"] == {"state": MissionState.FAILED, "error_msg": dispatch.TIMED_OUT}
+    assert ended.node_status["r"] == {"state": MissionState.FAILED, "error_msg": TIMED_OUT}
     assert (ended.end_timestamp, ended.order) == (NOW + timedelta(seconds=10), None)
     [cancel] = cancel_actions(result.actions)
     assert (cancel.mission, cancel.action_id.startswith(f"{order.order_id}-cancel")) == ("m1", True)
@@ -162,7 +164,7 @@ def test_a_running_mission_past_its_deadline_fails_with_deadline() -> None:
     ended = dispatcher.mission
     assert (ended.state, ended.failure_reason, ended.failure_category) == (
         MissionState.FAILED,
-        dispatch.DEADLINE_PASSED,
+        DEADLINE_PASSED,
         FailureCategory.DEADLINE,
     )
     assert len(cancel_actions(result.actions)) == 1
@@ -332,7 +334,7 @@ def test_an_update_equal_to_the_sent_route_changes_nothing() -> None:
     assert (result.actions, result.messages, dispatcher.node("r")) == ([], [], MissionState.RUNNING)
 
 
-def _updated_while_running() -> tuple[Dispatcher, dispatch.ActionRecord]:
+def _updated_while_running() -> tuple[Dispatcher, ActionRecord]:
     """A running route updated after the robot accepted it; the step that asked to cancel it."""
     dispatcher = started(route("r", (5.0, 6.0)))
     dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
@@ -363,7 +365,7 @@ def test_an_updated_route_sends_nothing_until_the_cancel_is_confirmed() -> None:
     assert (result.messages, dispatcher.node("r")) == ([], MissionState.RUNNING)
 
 
-def _cancel_confirmed(dispatcher: Dispatcher, cancel: dispatch.ActionRecord):
+def _cancel_confirmed(dispatcher: Dispatcher, cancel: ActionRecord):
     return on_order(
         dispatcher.results[0].mission.order, 0, extra_actions=[(cancel.action_id, ActionStatus.FINISHED)]
     ).model_copy(update={"node_states": [], "edge_states": []})
@@ -434,7 +436,7 @@ def test_a_canceled_mission_whose_robot_never_confirms_times_out() -> None:
 
 
 def test_canceling_a_mission_during_pause_order_returns_the_robot_to_idle() -> None:
-    dispatcher = _canceled(started(action("p", dispatch.PAUSE_ORDER)))
+    dispatcher = _canceled(started(action("p", PAUSE_ORDER)))
     order = dispatcher.order
     running = dispatcher.step(on_order(order, 0, action_status=ActionStatus.RUNNING), after=1.0)
     [cancel] = cancel_actions(running.actions)

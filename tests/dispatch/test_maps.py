@@ -4,8 +4,9 @@ parameters and tracked to their end."""
 import orjson
 import pytest
 
-from missions import dispatch
-from missions.vocabulary import MissionState
+from dispatch.held import state_digest
+from dispatch.records import ActionRecord
+from dispatch.vocabulary import MissionState
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,
@@ -151,7 +152,7 @@ def test_map_action_parameters_refuse_what_the_action_does_not_take(action_type,
 
 def test_a_map_action_is_sent_with_its_parameters_and_tracked_until_finished() -> None:
     parameters = map_action_parameters(ActionType.ENABLE_MAP, map_id="hall", map_version="2")
-    enable = dispatch.ActionRecord(
+    enable = ActionRecord(
         action_id=f"{ROBOT}-enableMap-1",
         action_type=ActionType.ENABLE_MAP,
         mission=None,
@@ -175,8 +176,8 @@ def test_a_map_action_is_sent_with_its_parameters_and_tracked_until_finished() -
 
 
 def test_a_change_of_maps_is_an_event_that_needs_a_step() -> None:
-    before = dispatch.state_digest(with_maps(IDLE_STATE, ("hall", "2", MapStatus.DISABLED)))
-    after = dispatch.state_digest(with_maps(IDLE_STATE, ("hall", "2", MapStatus.ENABLED)))
+    before = state_digest(with_maps(IDLE_STATE, ("hall", "2", MapStatus.DISABLED)))
+    after = state_digest(with_maps(IDLE_STATE, ("hall", "2", MapStatus.ENABLED)))
 
     assert before.events != after.events
 

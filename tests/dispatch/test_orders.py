@@ -2,8 +2,8 @@
 
 import pytest
 
-from missions import dispatch
-from missions.vocabulary import MissionState
+from dispatch.held import ORDER_ECHO
+from dispatch.vocabulary import MissionState
 from tests.dispatch.builders import (
     IDLE_STATE,
     SETTINGS,
@@ -57,8 +57,8 @@ def test_a_state_that_may_have_left_the_robot_before_the_order_reached_it_is_no_
     dispatcher = started()
     sent_at = dispatcher.mission.order_sent_at
 
-    late = dispatcher.step(IDLE_STATE, after=10.0, arrived_at=sent_at + dispatch.ORDER_ECHO / 2)
-    evidence = dispatcher.step(IDLE_STATE, after=0.0, arrived_at=sent_at + dispatch.ORDER_ECHO)
+    late = dispatcher.step(IDLE_STATE, after=10.0, arrived_at=sent_at + ORDER_ECHO / 2)
+    evidence = dispatcher.step(IDLE_STATE, after=0.0, arrived_at=sent_at + ORDER_ECHO)
 
     assert late.messages == []
     assert orders_sent(evidence)

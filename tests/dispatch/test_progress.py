@@ -4,8 +4,8 @@ from dataclasses import replace
 
 import pytest
 
-from missions import dispatch
-from missions.vocabulary import FailureCategory, MissionState, RobotState
+from dispatch.step import ACTION_FAILURE, PAUSE_ORDER
+from dispatch.vocabulary import FailureCategory, MissionState, RobotState
 from tests.dispatch.builders import (
     NOW,
     action,
@@ -160,13 +160,13 @@ def test_a_failed_action_without_an_error_fails_its_leaf_with_action_failure() -
 
     assert dispatcher.mission.node_status["a"] == {
         "state": MissionState.FAILED,
-        "error_msg": dispatch.ACTION_FAILURE,
+        "error_msg": ACTION_FAILURE,
     }
-    assert dispatcher.mission.failure_reason == dispatch.ACTION_FAILURE
+    assert dispatcher.mission.failure_reason == ACTION_FAILURE
 
 
 def test_pause_order_hands_the_robot_to_teleop_while_it_runs_and_back_when_finished() -> None:
-    dispatcher = started(action("p", dispatch.PAUSE_ORDER), route("r"))
+    dispatcher = started(action("p", PAUSE_ORDER), route("r"))
 
     running = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.RUNNING), after=1.0)
     assert (running.robot_state, dispatcher.node("p")) == (RobotState.TELEOP, MissionState.RUNNING)
@@ -181,7 +181,7 @@ def test_pause_order_hands_the_robot_to_teleop_while_it_runs_and_back_when_finis
 
 
 def test_pause_order_not_yet_reported_leaves_the_robot_on_task() -> None:
-    dispatcher = started(action("p", dispatch.PAUSE_ORDER))
+    dispatcher = started(action("p", PAUSE_ORDER))
 
     result = dispatcher.step(on_order(dispatcher.order, 0), after=1.0)
 
@@ -324,7 +324,7 @@ def test_a_selector_recovers_from_a_failed_action_and_the_mission_completes() ->
         MissionState.COMPLETED,
         None,
     )
-    assert dispatcher.mission.node_status["a"]["error_msg"] == dispatch.ACTION_FAILURE
+    assert dispatcher.mission.node_status["a"]["error_msg"] == ACTION_FAILURE
     assert done.robot_state == RobotState.IDLE
 
 
@@ -337,7 +337,7 @@ def test_a_failed_leaf_in_a_sequence_fails_the_mission_and_skips_its_siblings() 
     assert (ended.state, ended.failure_category, ended.failure_reason) == (
         MissionState.FAILED,
         FailureCategory.ROBOT_APP,
-        dispatch.ACTION_FAILURE,
+        ACTION_FAILURE,
     )
     assert (dispatcher.node("q"), dispatcher.node("r")) == (MissionState.FAILED, MissionState.PENDING)
     assert (ended.end_timestamp, ended.order) == (dispatcher.now, None)
@@ -403,7 +403,7 @@ def test_a_mission_of_routes_in_a_selector_waits_for_the_cancel_of_a_failed_orde
 
 
 def test_a_failed_pause_order_does_not_leave_the_robot_in_teleop() -> None:
-    dispatcher = started(action("p", dispatch.PAUSE_ORDER))
+    dispatcher = started(action("p", PAUSE_ORDER))
     dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.RUNNING), after=1.0)
 
     result = dispatcher.step(on_order(dispatcher.order, 0, action_status=ActionStatus.FAILED), after=1.0)

@@ -8,8 +8,10 @@ from datetime import timedelta
 
 import pytest
 
-from missions import dispatch
-from missions.vocabulary import Lifecycle
+from dispatch.held import NO_FINISHED_ACTIONS, state_digest, takes_order_only
+from dispatch.records import ActionRecord
+from dispatch.step import PAUSE_ORDER, sent_order, step
+from dispatch.vocabulary import Lifecycle
 from tests.dispatch.builders import (
     IDLE_STATE,
     NOW,
@@ -77,7 +79,7 @@ def _route_updated(confirm: bool) -> Scenario:
     return scenario
 
 
-def _with_actions(*actions: dispatch.ActionRecord, state: State = IDLE_STATE, **robot) -> Scenario:
+def _with_actions(*actions: ActionRecord, state: State = IDLE_STATE, **robot) -> Scenario:
     return lambda: (Dispatcher(None, robot=robot_view(**robot), actions=list(actions)), state, 0.0)
 
 
@@ -102,7 +104,7 @@ SCENARIOS: dict[str, Scenario] = {
     "ahead-refused": _on_running(
         [route("r1"), route("r2")],
         lambda d: on_order(
-            dispatch.sent_order(d.mission.order).message,
+            sent_order(d.mission.order).message,
             0,
             errors=[
                 error("orderUpdateError", ErrorLevel.WARNING, orderId=d.order.order_id, orderUpdateId="1")
@@ -111,7 +113,7 @@ SCENARIOS: dict[str, Scenario] = {
     ),
     "ahead-lacked": _on_running(
         [route("r1"), route("r2")],
-        lambda d: finished(dispatch.sent_order(d.mission.order).message),
+        lambda d: finished(sent_order(d.mission.order).message),
         after=3.5,  # the update re-sent
     ),
     "mission-completed": _on_running([route("r")], lambda d: finished(d.order)),
@@ -126,7 +128,7 @@ SCENARIOS: dict[str, Scenario] = {
         lambda d: on_order(d.order, 0, errors=[error("blocked", ErrorLevel.FATAL, orderId=d.order.order_id)]),
     ),
     "pause-order-teleop": _on_running(
-        [action("p", dispatch.PAUSE_ORDER), route("r")],
+        [action("p", PAUSE_ORDER), route("r")],
         lambda d: on_order(d.order, 0, action_status=ActionStatus.RUNNING),
     ),
     "timeout-cancel": _on_running([route("r")], lambda d: on_order(d.order, 0), after=301.0),
@@ -184,7 +186,7 @@ def test_a_step_never_mutates_its_inputs(scenario: Scenario) -> None:
         state.model_copy(deep=True),
     )
 
-    result = dispatch.step(
+    result = step(
         now=dispatcher.now + timedelta(seconds=after),
         robot=dispatcher.robot,
         state=state,
@@ -252,7 +254,7 @@ BASE = on_order(
     ],
 )
 def test_the_digest_changes_with_what_steps_read(change: dict) -> None:
-    assert dispatch.state_digest(BASE.model_copy(update=change)).full != dispatch.state_digest(BASE).full
+    assert state_digest(BASE.model_copy(update=change)).full != state_digest(BASE).full
 
 
 @pytest.mark.parametrize(
@@ -270,7 +272,7 @@ def test_the_digest_changes_with_what_steps_read(change: dict) -> None:
     ],
 )
 def test_the_digest_ignores_high_rate_fields(change: dict) -> None:
-    assert dispatch.state_digest(BASE.model_copy(update=change)) == dispatch.state_digest(BASE)
+    assert state_digest(BASE.model_copy(update=change)) == state_digest(BASE)
 
 
 @pytest.mark.parametrize(
@@ -306,15 +308,15 @@ def test_the_digest_ignores_high_rate_fields(change: dict) -> None:
     ],
 )
 def test_events_are_what_needs_a_step_whatever_order_the_robot_holds(change: dict, is_event: bool) -> None:
-    changed, base = dispatch.state_digest(BASE.model_copy(update=change)), dispatch.state_digest(BASE)
+    changed, base = state_digest(BASE.model_copy(update=change)), state_digest(BASE)
     assert (changed.events != base.events or changed.finished_actions != base.finished_actions) is is_event
 
 
 def test_a_robot_with_nodes_edges_or_actions_left_is_busy() -> None:
-    assert dispatch.state_digest(BASE).busy
-    assert not dispatch.state_digest(robot_state(order_id="m1-n0-r0", last_node_sequence_id=2)).busy
+    assert state_digest(BASE).busy
+    assert not state_digest(robot_state(order_id="m1-n0-r0", last_node_sequence_id=2)).busy
     waiting_action = robot_state(order_id="m1-n0-r0", action_states=[("a", ActionStatus.WAITING)])
-    assert dispatch.state_digest(waiting_action).busy
+    assert state_digest(waiting_action).busy
 
 
 # --- takes_order_only: the states the bridge need not wake a step for -------------------------------------
@@ -334,7 +336,7 @@ def taken_m1(*actions: tuple[str, ActionStatus]) -> State:
 
 
 def _takes_order_only(before: State, after: State) -> bool:
-    return dispatch.takes_order_only(dispatch.state_digest(before), dispatch.state_digest(after))
+    return takes_order_only(state_digest(before), state_digest(after))
 
 
 @pytest.mark.parametrize(
@@ -439,6 +441,6 @@ def test_any_other_change_needs_a_step(before: State, after: State) -> None:
 
 
 def test_a_digest_stored_without_its_finished_actions_apart_cannot_tell_and_needs_a_step() -> None:
-    before = replace(dispatch.state_digest(IDLE_AFTER_M0), finished_actions=dispatch.NO_FINISHED_ACTIONS)
+    before = replace(state_digest(IDLE_AFTER_M0), finished_actions=NO_FINISHED_ACTIONS)
 
-    assert not dispatch.takes_order_only(before, dispatch.state_digest(TAKEN_M1))
+    assert not takes_order_only(before, state_digest(TAKEN_M1))

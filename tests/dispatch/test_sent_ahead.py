@@ -11,8 +11,8 @@ from dataclasses import replace
 
 import pytest
 
-from missions import dispatch
-from missions.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
+from dispatch.step import SentOrder, sent_order
+from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     NOW,
     Dispatcher,
@@ -41,9 +41,9 @@ R2 = route("r2", (2.0, 3.0), (4.0, 3.0), allowedDeviationXY=0.0)
 R3 = route("r3", (5.0, 5.0))
 
 
-def sent(dispatcher: Dispatcher) -> dispatch.SentOrder:
+def sent(dispatcher: Dispatcher) -> SentOrder:
     assert dispatcher.mission is not None and dispatcher.mission.order is not None
-    return dispatch.sent_order(dispatcher.mission.order)
+    return sent_order(dispatcher.mission.order)
 
 
 def leaf_message(dispatcher: Dispatcher) -> OrderContent:

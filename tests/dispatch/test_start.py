@@ -5,8 +5,8 @@ from typing import Any
 
 import pytest
 
-from missions import dispatch
-from missions.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
+from dispatch.step import DEADLINE_PASSED
+from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     MISSION,
@@ -194,7 +194,7 @@ def test_a_queued_mission_past_its_deadline_fails_without_starting() -> None:
     ended = result.mission
     assert (ended.state, ended.failure_category) == (MissionState.FAILED, FailureCategory.DEADLINE)
     assert (ended.failure_reason, ended.start_timestamp, ended.end_timestamp) == (
-        dispatch.DEADLINE_PASSED,
+        DEADLINE_PASSED,
         None,
         NOW,
     )

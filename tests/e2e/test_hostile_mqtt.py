@@ -11,7 +11,7 @@ import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
 
-from fleet import livestate
+from robots import livestate
 from robots.models import Robot
 from tests.bridge.hostile import corpus, history
 from tests.bridge.messages import state_message, topic

@@ -7,7 +7,7 @@ import paho.mqtt.client as mqtt
 import pytest
 from django.conf import settings
 
-from fleet import livestate
+from robots import livestate
 from tests.e2e.conftest import BRIDGE, PYTHON, WORKER, Process
 from tests.e2e.helpers import (
     create_robot,

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from missions.engine import initial_node_status, next_leaf, parse_tree, set_leaf_state, tick
+from dispatch.engine import initial_node_status, next_leaf, parse_tree, set_leaf_state, tick
 
 from .trees import COMPLETED, FAILED, RUNNING, action, constant, move, notify, route, selector, sequence
 

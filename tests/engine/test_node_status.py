@@ -4,14 +4,7 @@ import copy
 
 import pytest
 
-from missions.engine import (
-    ROOT,
-    TreeError,
-    initial_node_status,
-    parse_tree,
-    set_leaf_state,
-    tick,
-)
+from dispatch.engine import ROOT, TreeError, initial_node_status, parse_tree, set_leaf_state, tick
 
 from .trees import CANCELED, COMPLETED, FAILED, PENDING, RUNNING, route, selector, states
 

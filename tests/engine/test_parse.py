@@ -4,8 +4,8 @@ import copy
 
 import pytest
 
-from missions.engine import ROOT, TreeError, parse_tree
-from missions.vocabulary import NodeKind
+from dispatch.engine import ROOT, TreeError, parse_tree
+from dispatch.vocabulary import NodeKind
 
 from .trees import action, constant, route, selector, sequence
 

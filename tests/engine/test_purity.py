@@ -16,9 +16,11 @@ print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "red
 @pytest.mark.parametrize(
     "module",
     [
-        "missions.vocabulary",
-        "missions.engine",
-        "missions.dispatch",
+        "dispatch.vocabulary",
+        "dispatch.engine",
+        "dispatch.step",
+        "dispatch.records",
+        "dispatch.held",
         "vda5050",
         "vda5050.codec",
         "vda5050.models",

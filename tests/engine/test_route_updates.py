@@ -4,7 +4,7 @@ import copy
 
 import pytest
 
-from missions.engine import TreeError, apply_route_updates, parse_tree, set_leaf_state, tick
+from dispatch.engine import TreeError, apply_route_updates, parse_tree, set_leaf_state, tick
 
 from .trees import RUNNING, action, play, route, selector
 

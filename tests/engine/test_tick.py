@@ -8,7 +8,7 @@ The scenarios named "reference" reproduce the status sequences of the reference'
 
 import pytest
 
-from missions.engine import ROOT
+from dispatch.engine import ROOT
 
 from .trees import (
     CANCELED,

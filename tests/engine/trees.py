@@ -3,7 +3,7 @@
 import copy
 from typing import Any
 
-from missions.engine import (
+from dispatch.engine import (
     LEAF_KINDS,
     ROOT,
     TickResult,
@@ -13,7 +13,7 @@ from missions.engine import (
     set_leaf_state,
     tick,
 )
-from missions.vocabulary import DONE_STATES, MissionState
+from dispatch.vocabulary import DONE_STATES, MissionState
 
 # Short names for the tables of node states in these tests.
 PENDING, RUNNING, COMPLETED = MissionState.PENDING, MissionState.RUNNING, MissionState.COMPLETED

@@ -16,11 +16,11 @@ from django.db import connection, transaction
 
 import missions.robot_step
 import missions.services
-from fleet import livestate
-from fleet.api import ObjectError
+from kit.api.errors import ObjectError
 from missions.models import Mission
 from missions.robot_step import robot_step
 from missions.services import mission_create
+from robots import livestate
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.bridge.test_robot_step import orders, put_state

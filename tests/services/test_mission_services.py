@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from fleet.api import ObjectError, UsageError
+from kit.api.errors import ObjectError, UsageError
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.models import Mission
 from missions.services import mission_cancel, mission_create, mission_delete, mission_update_routes

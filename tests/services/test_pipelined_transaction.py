@@ -1,4 +1,4 @@
-"""`fleet.db.pipelined_transaction`: the step's transaction block, against the real PostgreSQL.
+"""`kit.db.pipelined_transaction`: the step's transaction block, against the real PostgreSQL.
 
 Outside a test's transaction (as the bridge and the workers run it), so that what it commits or not is
 what another connection would see.
@@ -8,7 +8,7 @@ import pytest
 from django.db import DataError, connection, transaction
 from psycopg.pq import TransactionStatus
 
-from fleet.db import pipelined_transaction
+from kit.db import pipelined_transaction
 from robots.models import Robot
 from tests.database import other_connection
 from tests.factories import RobotFactory

@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from fleet.api import ObjectError, UsageError
+from kit.api.errors import ObjectError, UsageError
 from robots.choices import Lifecycle, TeleopAction
 from robots.models import Robot
 from robots.services import robot_create, robot_delete, robot_teleop, robot_update_spec

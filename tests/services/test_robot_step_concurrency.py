@@ -9,10 +9,10 @@ from datetime import UTC, datetime
 import pytest
 from django.db import connection
 
-from fleet import livestate
-from missions.dispatch import state_digest
+from dispatch.held import state_digest
 from missions.robot_step import robot_step
 from missions.services import mission_create
+from robots import livestate
 from robots.models import Robot
 from robots.services import robot_create
 from tests.factories import TEST_ACTOR

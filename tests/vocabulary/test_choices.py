@@ -8,8 +8,8 @@ from django.conf import settings
 from django.db import models
 from django.utils.module_loading import import_string
 
+from dispatch import vocabulary
 from missions import choices as mission_choices
-from missions import vocabulary
 from missions.models import Mission
 from robots import choices as robot_choices
 from robots.models import Robot

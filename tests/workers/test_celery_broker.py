@@ -32,13 +32,13 @@ def test_a_channel_whose_connection_is_gone_fails_as_a_connection_error(torn_dow
 
 
 def test_a_channel_publishes_and_acknowledges_through_one_client_per_pool() -> None:
-    """Celery's connections use fleet.broker's transport, whose channel reuses one Redis client (kombu made
+    """Celery's connections use kit.broker's transport, whose channel reuses one Redis client (kombu made
     one per publish and acknowledgement); a new pool (after a reconnect) gets a new client."""
     from fleet.celery import app
 
     with app.connection_for_write() as connection:
         channel = connection.default_channel
-        assert type(channel).__module__ == "fleet.broker"
+        assert type(channel).__module__ == "kit.broker"
         with channel.conn_or_acquire() as first, channel.conn_or_acquire() as second:
             assert first is second
             assert first.ping()
@@ -49,13 +49,13 @@ def test_a_channel_publishes_and_acknowledges_through_one_client_per_pool() -> N
 
 
 def test_a_delivered_task_waits_in_redis_until_acknowledged_and_can_be_delivered_again_from_there() -> None:
-    """kombu's acknowledgement emulation as fleet.broker's QoS writes it: a delivered message is kept in
+    """kombu's acknowledgement emulation as kit.broker's QoS writes it: a delivered message is kept in
     Redis (what a killed worker's tasks are delivered again from) until it is acknowledged."""
     queue = f"test-qos-{uuid.uuid4().hex[:8]}"
     broker = kombu.Connection(settings.CELERY_BROKER_URL, transport=settings.CELERY_BROKER_TRANSPORT)
     with broker as connection, connection.SimpleQueue(queue) as simple:
         qos = simple.channel.qos
-        assert type(qos).__module__ == "fleet.broker"
+        assert type(qos).__module__ == "kit.broker"
         redis_client = simple.channel.client
 
         def kept(tag: str) -> tuple[bool, bool]:

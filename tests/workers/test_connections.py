@@ -1,6 +1,6 @@
 """Database connections after PostgreSQL dropped them (a restart, a failover): the API's requests check
-theirs first (`fleet.postgresql`), the hot loops replace theirs after its first failure
-(`fleet.db.drop_broken_connections`)."""
+theirs first (`kit.postgresql`), the hot loops replace theirs after its first failure
+(`kit.db.drop_broken_connections`)."""
 
 import asyncio
 import time

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import pytest
 import redis
 
-from fleet import livestate
+from robots import livestate
 
 
 @pytest.fixture

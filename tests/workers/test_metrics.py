@@ -6,7 +6,7 @@ from typing import Any
 import pytest
 from django.test import override_settings
 
-from fleet import livestate
+from robots import livestate
 from workers import metrics
 
 SENT: list[tuple[str, dict[str, Any]]] = []

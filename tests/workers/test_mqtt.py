@@ -10,8 +10,8 @@ from django.conf import settings
 
 import workers.mqtt
 import workers.publish
-from fleet import livestate
 from missions.robot_step import WireMessage
+from robots import livestate
 from tests.waiting import wait_for
 from tests.workers.subscriber import subscribed
 from vda5050.topics import RobotAddress, Topic

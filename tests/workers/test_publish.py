@@ -6,8 +6,8 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet import livestate
 from missions.robot_step import WireMessage
+from robots import livestate
 from tests.waiting import wait_for
 from tests.workers.subscriber import subscribed
 from vda5050.topics import RobotAddress, Topic, topic_for

@@ -9,7 +9,7 @@ from django.core.management.base import BaseCommand, CommandError, CommandParser
 
 from access.selectors import api_token_list
 from access.services import api_token_create, api_token_revoke, dev_token_ensure
-from fleet.api import UsageError
+from kit.api.errors import UsageError
 
 
 class Command(BaseCommand):

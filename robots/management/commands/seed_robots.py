@@ -5,7 +5,7 @@ from typing import Any
 from django.core.management.base import BaseCommand, CommandError, CommandParser
 
 from access.choices import command_actor
-from fleet.api import UsageError
+from kit.api.errors import UsageError
 from robots.models import Robot
 from robots.services import robot_create
 

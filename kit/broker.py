@@ -1,7 +1,7 @@
 """kombu's Redis transport as Celery's broker (`CELERY_BROKER_TRANSPORT`), with two changes to its channel
 and one to its acknowledgement emulation.
 
-Imports only kombu, redis and `fleet.redis_wire`: kombu loads it by name when Celery first connects to the
+Imports only kombu, redis and `kit.redis_wire`: kombu loads it by name when Celery first connects to the
 broker.
 """
 
@@ -16,7 +16,7 @@ from kombu.message import Message
 from kombu.transport import virtual
 from kombu.utils.json import dumps
 
-from fleet import redis_wire
+from kit import redis_wire
 
 
 class QoS(kombu.transport.redis.QoS):

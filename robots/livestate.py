@@ -14,8 +14,8 @@ from typing import Any, NamedTuple
 import redis
 from django.conf import settings
 
-from fleet import redis_wire
-from missions.dispatch import HeldOrder, StateDigest
+from dispatch.held import HeldOrder, StateDigest
+from kit import redis_wire
 
 PREFIX = "fleet"
 ONLINE_SET = f"{PREFIX}:online"
@@ -188,7 +188,7 @@ def execute(pipe: redis.client.Pipeline) -> list[Any]:
 
 def round_trip(commands: list[Command]) -> list[Any]:
     """Send `commands` at once on this thread's connection and read their replies, an error reply in its
-    place (`fleet.redis_wire`)."""
+    place (`kit.redis_wire`)."""
     return redis_wire.round_trip(client().connection_pool, commands)
 
 

@@ -1,13 +1,15 @@
 """The API's request body parser: JSON, bounded in nesting, with only what PostgreSQL can store.
 
 Its own module, free of the views: DRF reads its parser setting while rest_framework.views loads, so the
-parser must load without them (fleet.api imports the views).
+parser must load without them (kit.api.health imports the views).
 """
 
 import re
+from collections.abc import Callable
 from typing import Any
 
 from django.conf import settings
+from django.http import HttpRequest, HttpResponse, JsonResponse
 from rest_framework import parsers, status
 from rest_framework.exceptions import APIException
 
@@ -71,3 +73,22 @@ def _unstorable(loc: tuple[str | int, ...]) -> InputError:
     return InputError(
         "Text must not contain NUL characters or unpaired surrogates.", type="invalid_text", loc=loc
     )
+
+
+def body_length_middleware(get_response: Callable[[HttpRequest], HttpResponse]) -> Callable:
+    """Refuse a body sent without Content-Length (chunked): Django reads no more of a body than its
+    Content-Length says, so the API would take a chunked body for none at all and, say, create a robot
+    with a random name instead of the one sent."""
+
+    def middleware(request: HttpRequest) -> HttpResponse:
+        if "chunked" in request.META.get("HTTP_TRANSFER_ENCODING", "").lower():
+            error = InputError("A body needs a Content-Length header.", type="length_required").error
+            return JsonResponse(
+                {"detail": [error]},
+                status=status.HTTP_400_BAD_REQUEST,
+                json_dumps_params={"separators": (",", ":")},
+            )
+        return get_response(request)
+
+    return middleware
+

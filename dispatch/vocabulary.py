@@ -1,8 +1,8 @@
 """The fleet's vocabulary, defined once: mission and node states, node kinds, failure categories, robot
 states and lifecycles, spelled as in the reference API.
 
-Pure Python (no Django, paho or Redis imports), so the pure modules (``missions.engine``,
-``missions.dispatch``) use these enums directly, and the Django choices (``missions.choices``,
+Pure Python (no Django, paho or Redis imports), so the pure modules (``dispatch.engine``,
+``dispatch.step``) use these enums directly, and the Django choices (``missions.choices``,
 ``robots.choices``) are built from them. Members are ``str``: they compare equal to, hash as and
 serialize to the plain strings stored in the database and in JSON.
 """

@@ -23,7 +23,7 @@ mission after a restart.
   ``mission_tree``; it can be a constant or an empty composite when that is where evaluation ended.
 
 No I/O, and no Django, paho or Redis imports: states and kinds are the vocabulary's ``MissionState`` and
-``NodeKind`` (``missions.vocabulary``), which compare equal to the API's plain strings stored in JSON.
+``NodeKind`` (``dispatch.vocabulary``), which compare equal to the API's plain strings stored in JSON.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
-from missions.vocabulary import DONE_STATES, MissionState, NodeKind
+from dispatch.vocabulary import DONE_STATES, MissionState, NodeKind
 
 __all__ = [
     "COMPOSITE_KINDS",

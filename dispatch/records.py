@@ -1,0 +1,110 @@
+"""The records a dispatch step reads and returns: the stored robot, mission and instant actions, the
+messages to send. Plain dataclasses, no I/O."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from typing import Any
+
+from dispatch.vocabulary import DONE_STATES
+from vda5050 import compat
+from vda5050.codec import ACTIONS_KEY
+from vda5050.models import (
+    InstantActionsContent,
+    OrderContent,
+)
+from vda5050.topics import Topic
+
+
+@dataclass(frozen=True)
+class DispatchSettings:
+    order_resend: timedelta
+    instant_action_resend: timedelta
+    start_deviation_xy: float
+
+
+@dataclass(frozen=True)
+class RobotView:
+    name: str
+    lifecycle: str
+    state: str
+    online: bool
+    battery_critical_level: float
+    switch_teleop: bool = False  # teleop asked for through the API (not by a pause_order action)
+    instant_actions_key: str = ACTIONS_KEY
+    instant_actions_key_by_operator: bool = False  # then no compatibility rule changes it
+
+
+@dataclass
+class MissionRecord:
+    """The stored fields of a mission that a step reads or writes."""
+
+    name: str
+    mission_tree: list[dict[str, Any]]
+    timeout: float
+    deadline: datetime | None
+    needs_canceled: bool
+    update_nodes: dict[str, Any] | None
+    lifecycle: str
+    state: str
+    current_node: int
+    node_status: dict[str, dict[str, Any]]
+    task_status: dict[str, int]
+    start_timestamp: datetime | None
+    end_timestamp: datetime | None
+    failure_reason: str | None
+    failure_category: str | None
+    waiting_reason: str | None
+    order: dict[str, Any] | None
+    order_sent_at: datetime | None
+    order_accepted: bool
+    attempts: dict[str, int]
+
+    @property
+    def done(self) -> bool:
+        return self.state in DONE_STATES
+
+
+@dataclass
+class ActionRecord:
+    """An instant action sent (or to be sent: `sent_at` None) and not yet reported final."""
+
+    action_id: str
+    action_type: str
+    mission: str | None
+    status: str | None
+    sent_at: datetime | None
+    send_count: int = 0
+    parameters: dict[str, Any] | None = None  # its actionParameters as a mapping (map actions have some)
+
+
+@dataclass(frozen=True)
+class Outgoing:
+    """A message to publish to the robot: an order or instant actions (header stamped when sent)."""
+
+    content: OrderContent | InstantActionsContent
+
+    @property
+    def topic(self) -> Topic:
+        """The topic it goes out on; each topic numbers its messages (headerId) on its own."""
+        return Topic.ORDER if isinstance(self.content, OrderContent) else Topic.INSTANT_ACTIONS
+
+
+@dataclass
+class StepResult:
+    robot_state: str
+    mission: MissionRecord | None
+    delete_mission: bool = False
+    delete_robot: bool = False
+    actions: list[ActionRecord] = field(default_factory=list)
+    messages: list[Outgoing] = field(default_factory=list)
+    notify: str | None = None  # name of a notify node to run now
+    switch_teleop: bool = False  # the robot's API teleop switch, which a mission's end leaves alone
+    rejected: bool = False  # the robot rejected an order (counted by the caller)
+    instant_actions_key: str | None = None  # the key the robot turned out to read, if it changed
+    rules_applied: list[tuple[compat.Rule, str]] = field(default_factory=list)  # (rule, why), to record
+    # What the mission was between two leaves that ran and ended within this step (a route sent ahead that
+    # the robot drove to its end before a step saw it start), oldest first: stored before `mission`, so
+    # every leaf is seen RUNNING, as when each leaf was sent in its own step.
+    passed: list[MissionRecord] = field(default_factory=list)
