@@ -11,6 +11,7 @@ from rest_framework.exceptions import ErrorDetail, ValidationError
 from kit.api.errors import UsageError
 from kit.api.fields import JsonStringField, NumberField, ObjectNameField
 from kit.api.names import GENERATED_NAME_LENGTH, NAME_PREFIX_MAX_LENGTH, OBJECT_NAME_ALPHABET
+from vda5050.orders import DEFAULT_ALLOWED_DEVIATION_THETA, DEFAULT_ALLOWED_DEVIATION_XY
 
 
 class StrictSerializer(serializers.Serializer):
@@ -85,10 +86,6 @@ class ObjectNameSerializer(serializers.Serializer):
         max_length=NAME_PREFIX_MAX_LENGTH,
         help_text="Instead of name: the object is named <prefix>-<random id>.",
     )
-
-
-DEFAULT_ALLOWED_DEVIATION_XY = 0.1
-DEFAULT_ALLOWED_DEVIATION_THETA = 0.0
 
 
 class Pose2DSerializer(StrictSerializer):
