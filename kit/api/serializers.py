@@ -5,10 +5,11 @@ from contextlib import suppress
 from functools import cache
 from typing import Any
 
+from django.http import QueryDict
 from rest_framework import serializers
 from rest_framework.exceptions import ErrorDetail, ValidationError
 
-from kit.api.errors import UsageError
+from kit.api.errors import QueryValidationError, UsageError
 from kit.api.fields import JsonStringField, NumberField, ObjectNameField
 from kit.api.names import GENERATED_NAME_LENGTH, NAME_PREFIX_MAX_LENGTH, OBJECT_NAME_ALPHABET
 from vda5050.orders import DEFAULT_ALLOWED_DEVIATION_THETA, DEFAULT_ALLOWED_DEVIATION_XY
@@ -48,6 +49,15 @@ def body_validated(serializer_class: type[serializers.Serializer], data: Any) ->
     body = serializer_class(data=data)
     body.is_valid(raise_exception=True)
     return body.validated_data
+
+
+def query_validated(serializer_class: type[serializers.Serializer], query: QueryDict) -> dict[str, Any]:
+    """The query parameters validated by `serializer_class` (as `body_validated` validates a body), or a
+    QueryValidationError: the same error body, located in "query"."""
+    try:
+        return body_validated(serializer_class, query)
+    except ValidationError as error:
+        raise QueryValidationError(error.detail) from None
 
 
 @cache

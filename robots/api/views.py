@@ -10,8 +10,7 @@ from rest_framework.response import Response
 from access.authentication import request_actor
 from changes.choices import ChangeKind
 from changes.views import AnyAccept, Source, watch_response
-from kit.api.errors import QueryValidationError
-from kit.api.serializers import body_validated
+from kit.api.serializers import body_validated, query_validated
 from robots.api import schema
 from robots.api.serializers import (
     MapActionRequestSerializer,
@@ -62,9 +61,7 @@ class RobotViewSet(viewsets.GenericViewSet):
         return watch_response(request, ROBOTS)
 
     def create(self, request: Request) -> Response:
-        body = RobotCreateSerializer(data=request.data)
-        body.is_valid(raise_exception=True)
-        spec = dict(body.validated_data)
+        spec = body_validated(RobotCreateSerializer, request.data)
         robot = robot_create(
             actor=request_actor(request), name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec
         )
@@ -74,10 +71,9 @@ class RobotViewSet(viewsets.GenericViewSet):
         return Response(RobotSerializer(robot_get(name=name)).data)
 
     def update(self, request: Request, name: str) -> Response:
-        body = RobotSpecSerializer(data=request.data)
-        body.is_valid(raise_exception=True)
+        spec = body_validated(RobotSpecSerializer, request.data)
         robot = robot_update_spec(
-            actor=request_actor(request), robot=robot_get(name=name, to_change=True), spec=body.validated_data
+            actor=request_actor(request), robot=robot_get(name=name, to_change=True), spec=spec
         )
         return Response(RobotSerializer(robot).data)
 
@@ -88,10 +84,8 @@ class RobotViewSet(viewsets.GenericViewSet):
     @extend_schema(**schema.ROBOT_TELEOP)
     @action(detail=True, methods=["post"])
     def teleop(self, request: Request, name: str) -> Response:
-        query = TeleopQuerySerializer(data=request.query_params)
-        if not query.is_valid():
-            raise QueryValidationError(query.errors)
-        teleop_action = TeleopAction(query.validated_data["params"])
+        query = query_validated(TeleopQuerySerializer, request.query_params)
+        teleop_action = TeleopAction(query["params"])
         robot_teleop(actor=request_actor(request), robot=robot_get(name=name), action=teleop_action)
         return Response(f"{teleop_action} teleop action received.")
 
