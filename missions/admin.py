@@ -17,9 +17,9 @@ from django.utils.safestring import SafeString
 from access.authentication import request_actor
 from dispatch.engine import Node, TreeError, apply_route_updates, parse_tree
 from dispatch.vocabulary import MissionState, NodeKind
+from kit.admin import call_service_for_each, delete_through_service
 from missions.models import Mission
 from missions.services import mission_cancel, mission_delete
-from robots.admin import call_service_for_each, delete_through_service
 from robots.models import Robot
 
 TREE_INDENT_PX = 20

@@ -32,6 +32,7 @@ from missions.rows import (
     mission_db_values,
     mission_row_delete,
 )
+from missions.tuning import OUTBOX_LIMIT
 from robots import livestate
 from robots.choices import InstantActionsKey, SettingSource
 from robots.models import InstantAction, Robot
@@ -165,8 +166,6 @@ class _RobotWire:
     published: dict[str, int]
 
 
-# Messages kept in a robot's outbox at most: those of its last steps that may not have gone out.
-OUTBOX_LIMIT = 16
 OUTBOX_SQL = f"""
     UPDATE {Robot._meta.db_table}
     SET next_order_header_id = %s, next_instant_actions_header_id = %s, outbox = %s WHERE name = %s

@@ -15,13 +15,11 @@ from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from missions.filters import MissionFilter
 from missions.models import Mission
+from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
 
 NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
-UNNOTICED_MISSION_SECONDS = 2  # a queued mission no step has seen for this long gets one
-# A running mission untouched this long whose robot has finished the mission's order gets a step.
-STALLED_MISSION_SECONDS = 5
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:

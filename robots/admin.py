@@ -1,20 +1,20 @@
 """Operator view of robots: the spec is editable, the status is what the robot reports; creating, deleting
 and teleop go through the same services as the API."""
 
-from collections.abc import Callable, Iterable, Iterator, Mapping
-from typing import Any, TypeVar
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Any
 
 from django import forms
-from django.contrib import admin, messages
-from django.contrib.admin.utils import flatten_fieldsets, model_ngettext
-from django.db.models import Model, QuerySet
+from django.contrib import admin
+from django.contrib.admin.utils import flatten_fieldsets
+from django.db.models import QuerySet
 from django.forms.models import model_to_dict
-from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
+from django.http import HttpRequest
 from django.utils.html import format_html, format_html_join
 from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
-from kit.api.errors import UsageError
+from kit.admin import ServiceAdmin, call_service_for_each, delete_through_service
 from kit.api.names import object_name_validator
 from robots.api.serializers import MapActionRequestSerializer, RobotSpecSerializer, RobotVda5050Serializer
 from robots.choices import MapAction, SettingSource, TeleopAction
@@ -50,50 +50,6 @@ IDENTITY_FIELDS = (
 )
 SPEC_FIELDS = (*EDITABLE_SPEC_FIELDS, "switch_teleop")
 
-M = TypeVar("M", bound=Model)
-
-
-def call_service_for_each(
-    modeladmin: admin.ModelAdmin,
-    request: HttpRequest,
-    objects: Iterable[M],
-    call: Callable[[M], object],
-    done: str,
-) -> None:
-    """Run an admin action's service on each selected object; the ones it refuses (UsageError) are
-    reported together as one warning instead of aborting the rest."""
-    accepted = 0
-    refusals: list[str] = []
-    for obj in objects:
-        try:
-            call(obj)
-        except UsageError as error:
-            refusals.append(error.message)
-        else:
-            accepted += 1
-    if accepted:
-        noun = model_ngettext(modeladmin.opts, accepted)
-        modeladmin.message_user(request, f"{done} for {accepted} {noun}.", messages.SUCCESS)
-    if refusals:
-        modeladmin.message_user(request, " ".join(refusals), messages.WARNING)
-
-
-def delete_through_service(
-    modeladmin: admin.ModelAdmin,
-    request: HttpRequest,
-    objects: Iterable[M],
-    delete: Callable[[M], M | None],
-    until: str,
-) -> None:
-    """Delete each object with its service; the ones the service only marks PENDING_DELETE (it returns
-    them) are named in a message, since the admin's own message says they were deleted."""
-    remaining = [str(obj) for obj in objects if delete(obj) is not None]
-    if remaining:
-        modeladmin.message_user(
-            request, f"PENDING_DELETE until {until}: {', '.join(remaining)}.", messages.INFO
-        )
-
-
 def html_table(headers: Iterable[str], rows: Iterable[Iterable[object]]) -> SafeString:
     """A read-only list (what a robot reports, what was asked of it) as a small HTML table, escaped."""
 
@@ -102,25 +58,6 @@ def html_table(headers: Iterable[str], rows: Iterable[Iterable[object]]) -> Safe
 
     body = format_html_join("", "<tr>{}</tr>", ((row(cells, "td"),) for cells in rows))
     return format_html("<table><tr>{}</tr>{}</table>", row(headers, "th"), body)
-
-
-class ServiceAdmin(admin.ModelAdmin):
-    """A model admin whose saves go through services: a save the service refuses (e.g. a VDA 5050
-    identity another robot uses, a map action for a 2.0 robot) is shown as an error on the same page, not
-    as a server error; the form's transaction is rolled back."""
-
-    def changeform_view(
-        self,
-        request: HttpRequest,
-        object_id: str | None = None,
-        form_url: str = "",
-        extra_context: Any = None,
-    ) -> HttpResponse:
-        try:
-            return super().changeform_view(request, object_id, form_url, extra_context)
-        except UsageError as error:
-            self.message_user(request, error.message, messages.ERROR)
-            return HttpResponseRedirect(request.get_full_path())
 
 
 def robot_spec(values: Mapping[str, Any]) -> dict[str, Any]:

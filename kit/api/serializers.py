@@ -5,12 +5,14 @@ from contextlib import suppress
 from functools import cache
 from typing import Any
 
+from django.http import QueryDict
 from rest_framework import serializers
 from rest_framework.exceptions import ErrorDetail, ValidationError
 
-from kit.api.errors import UsageError
+from kit.api.errors import QueryValidationError, UsageError
 from kit.api.fields import JsonStringField, NumberField, ObjectNameField
 from kit.api.names import GENERATED_NAME_LENGTH, NAME_PREFIX_MAX_LENGTH, OBJECT_NAME_ALPHABET
+from vda5050.orders import DEFAULT_ALLOWED_DEVIATION_THETA, DEFAULT_ALLOWED_DEVIATION_XY
 
 
 class StrictSerializer(serializers.Serializer):
@@ -49,6 +51,15 @@ def body_validated(serializer_class: type[serializers.Serializer], data: Any) ->
     return body.validated_data
 
 
+def query_validated(serializer_class: type[serializers.Serializer], query: QueryDict) -> dict[str, Any]:
+    """The query parameters validated by `serializer_class` (as `body_validated` validates a body), or a
+    QueryValidationError: the same error body, located in "query"."""
+    try:
+        return body_validated(serializer_class, query)
+    except ValidationError as error:
+        raise QueryValidationError(error.detail) from None
+
+
 @cache
 def _shared_serializer(serializer_class: type[serializers.Serializer]) -> serializers.Serializer:
     return serializer_class()
@@ -85,10 +96,6 @@ class ObjectNameSerializer(serializers.Serializer):
         max_length=NAME_PREFIX_MAX_LENGTH,
         help_text="Instead of name: the object is named <prefix>-<random id>.",
     )
-
-
-DEFAULT_ALLOWED_DEVIATION_XY = 0.1
-DEFAULT_ALLOWED_DEVIATION_THETA = 0.0
 
 
 class Pose2DSerializer(StrictSerializer):

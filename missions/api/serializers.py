@@ -25,11 +25,10 @@ from kit.api.serializers import ObjectNameSerializer, Pose2DSerializer, SpecSeri
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
+from missions.tuning import MAX_NOTIFY_TIMEOUT
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
 DEFAULT_NOTIFY_TIMEOUT = 30
-# A notify call waits at most a day: longer is no notification.
-MAX_NOTIFY_TIMEOUT = 86_400
 FREE_JSON_HELP = f"At most {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON."
 
 

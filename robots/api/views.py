@@ -1,8 +1,7 @@
 """Robot endpoints: thin methods that validate input, call a selector or service, and serialize."""
 
 from django.http import HttpResponse
-from drf_spectacular.types import OpenApiTypes
-from drf_spectacular.utils import OpenApiExample, OpenApiResponse, extend_schema, extend_schema_view
+from drf_spectacular.utils import extend_schema, extend_schema_view
 from rest_framework import viewsets
 from rest_framework.decorators import action
 from rest_framework.request import Request
@@ -11,9 +10,8 @@ from rest_framework.response import Response
 from access.authentication import request_actor
 from changes.choices import ChangeKind
 from changes.views import AnyAccept, Source, watch_response
-from kit.api.errors import QueryValidationError
-from kit.api.schema import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request
-from kit.api.serializers import body_validated
+from kit.api.serializers import body_validated, query_validated
+from robots.api import schema
 from robots.api.serializers import (
     MapActionRequestSerializer,
     MapActionSerializer,
@@ -33,142 +31,13 @@ from robots.services import robot_create, robot_delete, robot_map_action, robot_
 # /robot/{name}'s JSON.
 ROBOTS = Source(kind=ChangeKind.ROBOT, select=robot_list, serializer=RobotSerializer)
 
-README_ROBOT = {"labels": [], "battery": {"critical_level": 0.1}, "heartbeat_timeout": 30, "name": "carter01"}
-ROBOT_EXAMPLE = OpenApiExample(
-    "carter01",
-    response_only=True,
-    value={
-        "labels": [],
-        "battery": {"critical_level": 0.1, "recommended_minimum": None, "recommended_maximum": None},
-        "heartbeat_timeout": 30.0,
-        "switch_teleop": False,
-        "vda5050": {
-            "interface_name": "uagv",
-            "manufacturer": "RobotCompany",
-            "serial_number": "carter01",
-            "version": "2.0.0",
-            "version_source": "DEFAULT",
-            "instant_actions_key": "actions",
-            "instant_actions_key_source": "DEFAULT",
-            "compatibility_rules": [],
-        },
-        "name": "carter01",
-        "status": {
-            "pose": {
-                "x": 4.0,
-                "y": 5.0,
-                "theta": 0.0,
-                "map_id": "map",
-                "allowedDeviationXY": 0.1,
-                "allowedDeviationTheta": 0.0,
-            },
-            "position_initialized": True,
-            "software_version": {"os": "", "app": ""},
-            "hardware_version": {"manufacturer": "RobotCompany", "serial_number": "carter01"},
-            "factsheet": {"agv_class": "CARRIER", "speed_max": 1.0},
-            "online": True,
-            "battery_level": 42.0,
-            "state": "IDLE",
-            "info_messages": None,
-            "errors": {},
-            "maps": [],
-        },
-        "lifecycle": "ALIVE",
-    },
-)
-NOT_FOUND_EXAMPLE = OpenApiExample(
-    "Robot not found", value={"detail": 'Did not find "robot" with name "carter99"'}, status_codes=["400"]
-)
-NOT_FOUND_TO_CHANGE_EXAMPLE = OpenApiExample(
-    "Robot not found", value={"detail": "Could not find object carter99"}, status_codes=["400"]
-)
-MAP_ACTION_EXAMPLE = OpenApiExample(
-    "downloadMap",
-    response_only=True,
-    value={
-        "action_id": "carter01-downloadMap-0b7e4a52-7d0e-4f4a-9c56-3f1f0c1d2e11",
-        "action": "downloadMap",
-        "parameters": {
-            "mapId": "warehouse",
-            "mapVersion": "2",
-            "mapDownloadLink": "https://maps.example/warehouse/2",
-        },
-        "status": None,
-        "sent_at": None,
-        "created_at": "2026-11-26T15:00:00Z",
-    },
-)
-NO_MAPS_EXAMPLE = OpenApiExample(
-    "VDA 5050 2.0 robot",
-    value={
-        "message": "Robot carter01 speaks VDA 5050 2.0.0, which has no map actions (maps came with 2.1.0).",
-        "error_code": "USAGE",
-    },
-    status_codes=["400"],
-)
-DELETED_EXAMPLE = OpenApiExample("Deleted", value={"detail": "carter01 is PENDING_DELETE"})
-
 
 @extend_schema_view(
-    list=extend_schema(
-        operation_id="robot_list",
-        summary="List robots",
-        description="All robots, ordered by name, narrowed by the filters (combined with AND).",
-        responses={200: RobotSerializer(many=True), 400: bad_request(SCHEMA_ERROR_EXAMPLE)},
-        examples=[ROBOT_EXAMPLE],
-    ),
-    create=extend_schema(
-        operation_id="robot_create",
-        summary="Create a robot",
-        description=(
-            "Creates a robot. Without a name or prefix it gets a random id as name. The robot's name is its "
-            "VDA 5050 serial number unless vda5050.serial_number says otherwise."
-        ),
-        request=RobotCreateSerializer,
-        responses={
-            200: RobotSerializer,
-            400: bad_request(
-                OpenApiExample(
-                    "Duplicate",
-                    value={"detail": "Object robot with name carter01 already exists"},
-                    status_codes=["400"],
-                ),
-                SCHEMA_ERROR_EXAMPLE,
-            ),
-        },
-        examples=[OpenApiExample("README robot", value=README_ROBOT, request_only=True), ROBOT_EXAMPLE],
-    ),
-    retrieve=extend_schema(
-        operation_id="robot_get",
-        summary="Get a robot",
-        responses={200: RobotSerializer, 400: bad_request(NOT_FOUND_EXAMPLE)},
-        examples=[ROBOT_EXAMPLE],
-    ),
-    update=extend_schema(
-        operation_id="robot_update",
-        summary="Replace a robot's spec",
-        description="Replaces the whole spec: fields the body omits go back to their defaults.",
-        request=RobotSpecSerializer,
-        responses={200: RobotSerializer, 400: bad_request(NOT_FOUND_TO_CHANGE_EXAMPLE, SCHEMA_ERROR_EXAMPLE)},
-        examples=[
-            OpenApiExample(
-                "Shorter heartbeat",
-                value={"labels": ["warehouse"], "heartbeat_timeout": 10},
-                request_only=True,
-            ),
-            ROBOT_EXAMPLE,
-        ],
-    ),
-    destroy=extend_schema(
-        operation_id="robot_delete",
-        summary="Delete a robot",
-        description=(
-            "Marks the robot PENDING_DELETE. It is removed at once, or, if it is running a mission, once the "
-            "dispatch engine has failed that mission."
-        ),
-        responses={200: DETAIL_RESPONSE, 400: bad_request(NOT_FOUND_TO_CHANGE_EXAMPLE)},
-        examples=[DELETED_EXAMPLE],
-    ),
+    list=extend_schema(**schema.ROBOT_LIST),
+    create=extend_schema(**schema.ROBOT_CREATE),
+    retrieve=extend_schema(**schema.ROBOT_GET),
+    update=extend_schema(**schema.ROBOT_UPDATE),
+    destroy=extend_schema(**schema.ROBOT_DELETE),
 )
 class RobotViewSet(viewsets.GenericViewSet):
     """Robots. `queryset` and `filterset_class` describe the endpoints for the OpenAPI schema; reads go
@@ -192,9 +61,7 @@ class RobotViewSet(viewsets.GenericViewSet):
         return watch_response(request, ROBOTS)
 
     def create(self, request: Request) -> Response:
-        body = RobotCreateSerializer(data=request.data)
-        body.is_valid(raise_exception=True)
-        spec = dict(body.validated_data)
+        spec = body_validated(RobotCreateSerializer, request.data)
         robot = robot_create(
             actor=request_actor(request), name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec
         )
@@ -204,10 +71,9 @@ class RobotViewSet(viewsets.GenericViewSet):
         return Response(RobotSerializer(robot_get(name=name)).data)
 
     def update(self, request: Request, name: str) -> Response:
-        body = RobotSpecSerializer(data=request.data)
-        body.is_valid(raise_exception=True)
+        spec = body_validated(RobotSpecSerializer, request.data)
         robot = robot_update_spec(
-            actor=request_actor(request), robot=robot_get(name=name, to_change=True), spec=body.validated_data
+            actor=request_actor(request), robot=robot_get(name=name, to_change=True), spec=spec
         )
         return Response(RobotSerializer(robot).data)
 
@@ -215,107 +81,16 @@ class RobotViewSet(viewsets.GenericViewSet):
         robot_delete(actor=request_actor(request), robot=robot_get(name=name, to_change=True))
         return Response({"detail": f"{name} is PENDING_DELETE"})
 
-    @extend_schema(
-        operation_id="robot_teleop",
-        summary="Start or stop teleop",
-        description=(
-            "START puts the robot in teleop (allowed when it is IDLE, ON_TASK, MAP_DEPLOYMENT or TELEOP); "
-            "STOP takes it out. The dispatch engine sends the robot startTeleop or stopTeleop."
-        ),
-        request=None,
-        parameters=[TeleopQuerySerializer],
-        responses={
-            200: OpenApiResponse(
-                OpenApiTypes.STR,
-                examples=[OpenApiExample("START", value="START teleop action received.")],
-            ),
-            400: bad_request(
-                NOT_FOUND_EXAMPLE,
-                OpenApiExample(
-                    "Not allowed",
-                    value={
-                        "message": "Robot carter01 is in CHARGING and request cannot be satisfied: "
-                        "teleop can only start from IDLE, MAP_DEPLOYMENT, ON_TASK, TELEOP.",
-                        "error_code": "USAGE",
-                    },
-                    status_codes=["400"],
-                ),
-            ),
-        },
-        filters=False,
-    )
+    @extend_schema(**schema.ROBOT_TELEOP)
     @action(detail=True, methods=["post"])
     def teleop(self, request: Request, name: str) -> Response:
-        query = TeleopQuerySerializer(data=request.query_params)
-        if not query.is_valid():
-            raise QueryValidationError(query.errors)
-        teleop_action = TeleopAction(query.validated_data["params"])
+        query = query_validated(TeleopQuerySerializer, request.query_params)
+        teleop_action = TeleopAction(query["params"])
         robot_teleop(actor=request_actor(request), robot=robot_get(name=name), action=teleop_action)
         return Response(f"{teleop_action} teleop action received.")
 
-    @extend_schema(
-        methods=["GET"],
-        operation_id="robot_maps",
-        summary="A robot's maps and map actions",
-        description=(
-            "The maps the robot reports (VDA 5050 2.1+ state.maps) and the map actions asked of it, newest "
-            "first, each with the status the robot last reported."
-        ),
-        responses={200: RobotMapsSerializer, 400: bad_request(NOT_FOUND_EXAMPLE)},
-        examples=[
-            OpenApiExample(
-                "A map downloaded and enabled",
-                response_only=True,
-                value={
-                    "maps": [
-                        {
-                            "map_id": "warehouse",
-                            "map_version": "2",
-                            "map_status": "ENABLED",
-                            "map_description": None,
-                        }
-                    ],
-                    "actions": [{**MAP_ACTION_EXAMPLE.value, "status": "FINISHED"}],
-                },
-            )
-        ],
-        filters=False,
-    )
-    @extend_schema(
-        methods=["POST"],
-        operation_id="robot_map_action",
-        summary="Download, enable or delete a map",
-        description=(
-            "Asks the robot (VDA 5050 2.1 or later) to download a map version (downloadMap), enable it "
-            "(enableMap) or delete it (deleteMap). The dispatch engine sends it as an instant action and "
-            "tracks it until the robot reports it FINISHED or FAILED (GET /robot/{name}/map). A mission "
-            "whose waypoints name a map the robot does not report ENABLED waits for it."
-        ),
-        request=MapActionRequestSerializer,
-        responses={
-            200: MapActionSerializer,
-            400: bad_request(NOT_FOUND_EXAMPLE, NO_MAPS_EXAMPLE, SCHEMA_ERROR_EXAMPLE),
-        },
-        examples=[
-            OpenApiExample(
-                "Download",
-                request_only=True,
-                value={
-                    "action": "downloadMap",
-                    "map_id": "warehouse",
-                    "map_version": "2",
-                    "map_download_link": "https://maps.example/warehouse/2",
-                },
-            ),
-            OpenApiExample(
-                "Enable",
-                request_only=True,
-                value={"action": "enableMap", "map_id": "warehouse", "map_version": "2"},
-            ),
-            MAP_ACTION_EXAMPLE,
-        ],
-        filters=False,
-    )
+    @extend_schema(**schema.ROBOT_MAPS)
+    @extend_schema(**schema.ROBOT_MAP_ACTION)
     @action(detail=True, methods=["get", "post"], url_path="map")
     def map(self, request: Request, name: str) -> Response:
         robot = robot_get(name=name)

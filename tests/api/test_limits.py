@@ -10,9 +10,9 @@ from django.conf import settings
 
 from kit.api.fields import MAX_SECONDS
 from kit.api.names import OBJECT_NAME_MAX_LENGTH
-from missions.api.serializers import MAX_NOTIFY_TIMEOUT
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
+from missions.tuning import MAX_NOTIFY_TIMEOUT
 from robots.models import Robot
 from tests.factories import MissionFactory, RobotFactory
 

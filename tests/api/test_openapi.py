@@ -12,7 +12,7 @@ from drf_spectacular.validation import validate_schema
 
 from kit.api.fields import MAX_SECONDS
 from kit.api.names import OBJECT_NAME_MAX_LENGTH
-from missions.api.serializers import MAX_NOTIFY_TIMEOUT
+from missions.tuning import MAX_NOTIFY_TIMEOUT
 from tests.api.readme import README_MISSIONS, README_ROBOT
 
 ENDPOINTS = {

@@ -11,7 +11,8 @@ from dispatch.held import ORDER_ECHO
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import robot_step
-from missions.selectors import STALLED_MISSION_SECONDS, robots_due_for_step, robots_stalled
+from missions.selectors import robots_due_for_step, robots_stalled
+from missions.tuning import STALLED_MISSION_SECONDS
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
 from vda5050.models import OrderContent

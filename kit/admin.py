@@ -1,0 +1,74 @@
+"""What every app's admin shares: its writes go through the app's services, and what a service refuses
+(a UsageError) is shown to the operator as a message, not as a server error."""
+
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
+
+from django.contrib import admin, messages
+from django.contrib.admin.utils import model_ngettext
+from django.db.models import Model
+from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
+
+from kit.api.errors import UsageError
+
+M = TypeVar("M", bound=Model)
+
+
+def call_service_for_each(
+    modeladmin: admin.ModelAdmin,
+    request: HttpRequest,
+    objects: Iterable[M],
+    call: Callable[[M], object],
+    done: str,
+) -> None:
+    """Run an admin action's service on each selected object; the ones it refuses (UsageError) are
+    reported together as one warning instead of aborting the rest."""
+    accepted = 0
+    refusals: list[str] = []
+    for obj in objects:
+        try:
+            call(obj)
+        except UsageError as error:
+            refusals.append(error.message)
+        else:
+            accepted += 1
+    if accepted:
+        noun = model_ngettext(modeladmin.opts, accepted)
+        modeladmin.message_user(request, f"{done} for {accepted} {noun}.", messages.SUCCESS)
+    if refusals:
+        modeladmin.message_user(request, " ".join(refusals), messages.WARNING)
+
+
+def delete_through_service(
+    modeladmin: admin.ModelAdmin,
+    request: HttpRequest,
+    objects: Iterable[M],
+    delete: Callable[[M], M | None],
+    until: str,
+) -> None:
+    """Delete each object with its service; the ones the service only marks PENDING_DELETE (it returns
+    them) are named in a message, since the admin's own message says they were deleted."""
+    remaining = [str(obj) for obj in objects if delete(obj) is not None]
+    if remaining:
+        modeladmin.message_user(
+            request, f"PENDING_DELETE until {until}: {', '.join(remaining)}.", messages.INFO
+        )
+
+
+class ServiceAdmin(admin.ModelAdmin):
+    """A model admin whose saves go through services: a save the service refuses (e.g. a VDA 5050
+    identity another robot uses, a map action for a 2.0 robot) is shown as an error on the same page, not
+    as a server error; the form's transaction is rolled back."""
+
+    def changeform_view(
+        self,
+        request: HttpRequest,
+        object_id: str | None = None,
+        form_url: str = "",
+        extra_context: Any = None,
+    ) -> HttpResponse:
+        try:
+            return super().changeform_view(request, object_id, form_url, extra_context)
+        except UsageError as error:
+            self.message_user(request, error.message, messages.ERROR)
+            return HttpResponseRedirect(request.get_full_path())

@@ -1,0 +1,16 @@
+"""The missions app's fixed periods and sizes, each with why it is what it is (an operator's knob is a
+FLEET_ setting in fleet/settings.py instead)."""
+
+# A queued mission no step has seen for this long, on a robot that runs nothing, gets a step from the sweep:
+# its creation's wake-up was lost (Redis away, or the API killed between its commit and the wake-up).
+UNNOTICED_MISSION_SECONDS = 2
+
+# A running mission untouched this long whose robot has finished the mission's order gets a step: the last
+# line of defence when the step that state asked for was lost.
+STALLED_MISSION_SECONDS = 5
+
+# Messages kept in a robot's outbox at most: those of its last steps that may not have gone out.
+OUTBOX_LIMIT = 16
+
+# A notify call waits at most a day (seconds): longer is no notification.
+MAX_NOTIFY_TIMEOUT = 86_400
