@@ -284,7 +284,7 @@ def _count(number: int, what: str) -> str:
 
 
 def _wait_for_redis(timeout: float = 10) -> None:
-    client = redis.Redis(port=REDIS_PORT)
+    client = redis.Redis(host="127.0.0.1", port=REDIS_PORT)
     deadline = time.monotonic() + timeout
     try:
         while True:
