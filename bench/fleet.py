@@ -83,6 +83,8 @@ class Options:
     label: str = ""
     output: Path = Path("bench/results")
     cleanup: bool = True
+    probe_postgres: str | None = None  # conninfo for the round-trip probe at the run's start
+    probe_redis: str | None = None  # Redis URL for the round-trip probe at the run's start
     process_groups: dict[str, str] = field(default_factory=lambda: dict(measure.DEFAULT_PROCESS_GROUPS))
 
     @property
@@ -202,6 +204,8 @@ class Bench:
         started_at = datetime.now(UTC)
         cpu_speed_ms = measure.cpu_speed_ms()  # before the fleet exists: no load of this run
         logger.info("CPU speed: %.1f ms of calibration work (lower is faster)", cpu_speed_ms)
+        round_trips = measure.round_trip_us(options.probe_postgres, options.probe_redis)
+        logger.info("round trips: %s", round_trips)
         try:
             await self._create_robots()
             await self._connect()
@@ -222,7 +226,7 @@ class Bench:
         finally:
             self.posting = False
             await self._shut_down()
-        return self._result(started_at, cpu_speed_ms, measured, failed)
+        return self._result(started_at, {"cpu_speed_ms": cpu_speed_ms, **round_trips}, measured, failed)
 
     async def _create_robots(self) -> None:
         logger.info("creating %d robots %s-*", len(self.loads), self.options.name_prefix)
@@ -550,7 +554,7 @@ class Bench:
     def _result(
         self,
         started_at: datetime,
-        cpu_speed_ms: float,
+        calibration: dict[str, Any],
         measured: dict[str, Any],
         failed: dict[str, Any] | None,
     ) -> dict[str, Any]:
@@ -564,7 +568,7 @@ class Bench:
             "run_id": options.run_id,
             "started_at": started_at.isoformat(),
             "options": {**asdict(options), "output": str(options.output), "api_token": None},
-            "machine": {**measure.machine(), "cpu_speed_ms": cpu_speed_ms, **measured["busy_and_steal"]},
+            "machine": {**measure.machine(), **calibration, **measured["busy_and_steal"]},
             "window_seconds": round(seconds, 2),
             "settle_seconds": self.settle_seconds,
             "throughput": {
@@ -608,6 +612,9 @@ class Bench:
                 "samples": self.error_samples,
             },
             "cpu": measured["processes"],
+            "cpu_per_order": measure.cpu_per_order(
+                measured["processes"], window.orders_finished, calibration["cpu_speed_ms"]
+            ),
             "generator_tick_lag_ms": {"p99": lags["p99"], "max": lags["max"]},
             "series": measured["series"],
             "drift": measure.drift(measured["series"]),
@@ -710,6 +717,15 @@ def build_parser() -> argparse.ArgumentParser:
         action=argparse.BooleanOptionalAction,
         default=True,
         help="delete the robots and clear their retained messages at the end",
+    )
+    parser.add_argument(
+        "--probe-postgres",
+        default=None,
+        metavar="CONNINFO",
+        help="measure SELECT 1 round trips on this PostgreSQL database at the run's start",
+    )
+    parser.add_argument(
+        "--probe-redis", default=None, metavar="URL", help="measure Redis PING round trips at the run's start"
     )
     parser.add_argument(
         "--proc",

@@ -8,7 +8,7 @@ import os
 import platform
 import re
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +30,12 @@ DEFAULT_PROCESS_GROUPS = {
 GENERATOR = "generator"
 CALIBRATION_ITERATIONS = 5000  # about 150 ms of CPU on a 2.5 GHz core
 CALIBRATION_REPEATS = 5
+# The reference hour's calibration (ms): a figure of CPU per order scales to it as figure * 134 / cal, the
+# CPU per order it would have taken on the machine as fast as then (a slower machine, cal above 134, scales
+# down).
+REFERENCE_CAL_MS = 134.0
+ROUND_TRIPS = 500  # per probe and repeat: SELECT 1 on PostgreSQL, PING on Redis
+ROUND_TRIP_REPEATS = 3
 
 
 def latency_summary(samples: Sequence[float]) -> dict[str, float | int | None]:
@@ -55,6 +61,7 @@ def latency_summary(samples: Sequence[float]) -> dict[str, float | int | None]:
 class ProcessSample:
     cpu_seconds: float  # user + system, plus that of children it has reaped (postgres backends, workers)
     rss_bytes: int
+    parent: int = 0  # its parent's pid; 0: unknown
 
 
 def process_sample(pid: int) -> ProcessSample | None:
@@ -65,7 +72,8 @@ def process_sample(pid: int) -> ProcessSample | None:
         return None
     fields = text[text.rindex(")") + 2 :].split()  # after "pid (comm) "; comm may contain spaces
     utime, stime, cutime, cstime = (int(value) for value in fields[11:15])
-    return ProcessSample((utime + stime + cutime + cstime) / CLOCK_TICKS, int(fields[21]) * PAGE_SIZE)
+    cpu_seconds = (utime + stime + cutime + cstime) / CLOCK_TICKS
+    return ProcessSample(cpu_seconds, int(fields[21]) * PAGE_SIZE, int(fields[1]))
 
 
 def command_lines() -> dict[int, str]:
@@ -130,7 +138,9 @@ def usage(before: Snapshot, after: Snapshot, seconds: float) -> dict[str, dict[s
     processes.
 
     A process that started in between counts in full; one that ended is counted by its parent if the
-    parent reaped it (postgres backends, prefork workers), so what it had used before is taken off.
+    parent reaped it (postgres backends, prefork workers), so what it had used before is taken off. If its
+    parent is known and not in the group (a group of one database's postgres backends, without the
+    postmaster), nothing of it is counted: what it used between ``before`` and its end is lost.
     """
     report = {}
     for group, pids in after.members.items():
@@ -142,7 +152,9 @@ def usage(before: Snapshot, after: Snapshot, seconds: float) -> dict[str, dict[s
         # A member that ended was reaped by its parent, whose children's time now holds all of its CPU,
         # including what it had used before.
         for pid in set(before.members.get(group, ())) - set(after.samples):
-            cpu -= before.samples[pid].cpu_seconds if pid in before.samples else 0.0
+            gone = before.samples.get(pid)
+            if gone is not None and (not gone.parent or gone.parent in pids):
+                cpu -= gone.cpu_seconds
         rss = sum(after.samples[pid].rss_bytes for pid in pids if pid in after.samples)
         report[group] = {
             "cpu_seconds": round(cpu, 2),
@@ -161,13 +173,20 @@ def interleaved(
     other round, so that a machine's drift (up to 2x in a day on the shared VMs, swings within minutes)
     falls on every side alike."""
     spent: dict[str, list[tuple[float, float]]] = {side: [] for side in sides}
+    for number, side in interleaved_order(sides, rounds):
+        before, started = meter.snapshot(), time.monotonic()
+        run_round(side, number)
+        wall = time.monotonic() - started
+        spent[side].append((usage(before, meter.snapshot(), wall)[side]["cpu_seconds"], wall))
+    return spent
+
+
+def interleaved_order(sides: Sequence[str], rounds: int) -> Iterator[tuple[int, str]]:
+    """(round number, side) in the order ``interleaved`` runs them: side after side, the order reversed
+    every other round (A B, B A, A B, ... for two sides)."""
     for number in range(rounds):
         for side in sides if number % 2 == 0 else sides[::-1]:
-            before, started = meter.snapshot(), time.monotonic()
-            run_round(side, number)
-            wall = time.monotonic() - started
-            spent[side].append((usage(before, meter.snapshot(), wall)[side]["cpu_seconds"], wall))
-    return spent
+            yield number, side
 
 
 def _ancestors(pid: int) -> set[int]:
@@ -285,6 +304,70 @@ def cpu_speed_ms() -> float:
         _calibration_work(CALIBRATION_ITERATIONS)
         best = min(best, time.thread_time() - began)
     return round(best * 1000, 1)
+
+
+def round_trip_us(
+    postgres: str | None, redis_url: str | None, count: int = ROUND_TRIPS
+) -> dict[str, float | None]:
+    """µs of wall time per round trip, best of ROUND_TRIP_REPEATS loops of ``count``: ``SELECT 1`` on a new
+    psycopg connection (autocommit) to ``postgres`` (a conninfo string) and Redis ``PING`` to ``redis_url``;
+    None for a service not given. What the pure-Python calibration misses: the client's and the server's
+    system calls, the loopback, the services' own speed."""
+    figures: dict[str, float | None] = {"select1_us": None, "redis_ping_us": None}
+    if postgres is not None:
+        import psycopg  # only when probing: bench.fleet runs against servers without one
+
+        with psycopg.connect(postgres, autocommit=True) as connection, connection.cursor() as cursor:
+
+            def select() -> None:
+                cursor.execute("SELECT 1")
+                cursor.fetchone()
+
+            figures["select1_us"] = _best_loop_us(select, count)
+    if redis_url is not None:
+        import redis
+
+        client = redis.Redis.from_url(redis_url)
+        try:
+            figures["redis_ping_us"] = _best_loop_us(client.ping, count)
+        finally:
+            client.close()
+    return figures
+
+
+def _best_loop_us(call: Callable[[], object], count: int) -> float:
+    call()  # connected, first statement parsed
+    best = math.inf
+    for _ in range(ROUND_TRIP_REPEATS):
+        began = time.perf_counter()
+        for _ in range(count):
+            call()
+        best = min(best, time.perf_counter() - began)
+    return round(best / count * 1e6, 1)
+
+
+def cpu_per_order(
+    processes: Mapping[str, Mapping[str, float | int]], orders: int, cal_ms: float | None
+) -> dict[str, Any]:
+    """Server CPU per order over a window: the CPU seconds of every group but the generator (``usage``'s
+    figures) / the orders finished in the window, in ms; ``at_reference_ms`` scaled to the reference hour
+    (``* REFERENCE_CAL_MS / cal_ms``); None without orders (an idle run)."""
+    server = {
+        group: float(figures["cpu_seconds"]) for group, figures in processes.items() if group != GENERATOR
+    }
+    total = sum(server.values())
+    per_order = total * 1000 / orders if orders else None
+    return {
+        "orders": orders,
+        "server_cpu_seconds": round(total, 2),
+        "server_ms": round(per_order, 3) if per_order is not None else None,
+        "at_reference_ms": round(per_order * REFERENCE_CAL_MS / cal_ms, 3)
+        if per_order is not None and cal_ms
+        else None,
+        "by_group_ms": {
+            group: round(seconds * 1000 / orders, 3) if orders else None for group, seconds in server.items()
+        },
+    }
 
 
 def _calibration_work(iterations: int) -> None:

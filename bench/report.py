@@ -10,13 +10,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import statistics
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from bench.measure import GENERATOR, REFERENCE_CAL_MS
+
 SERVER_GROUPS = ("api", "bridge", "workers", "beat", "redis", "postgres", "broker")
-GENERATOR = "generator"
 
 
 def run_stem(result: dict[str, Any]) -> str:
@@ -54,11 +56,21 @@ def run_markdown(result: dict[str, Any]) -> str:
             lines.append(f"| failure reasons | {reasons.replace('|', '/')} |")
     errors = {key: count for key, count in result["errors"].items() if key != "samples" and count}
     lag, machine = result["generator_tick_lag_ms"], result["machine"]
+    if result["mode"] == "run":
+        per_order = result.get("cpu_per_order") or {}
+        lines += [
+            f"| server CPU per order (ms; all server groups / orders in the window) | "
+            f"{_value(per_order.get('server_ms'))} |",
+            f"| server CPU per order at the reference hour (ms x {REFERENCE_CAL_MS:g} / cal) | "
+            f"{_value(per_order.get('at_reference_ms'))} |",
+        ]
     lines += [
         f"| errors | {', '.join(f'{key} {count}' for key, count in errors.items()) or 'none'} |",
         f"| server settled after the fleet came online (s) | {_value(result.get('settle_seconds'))} |",
         f"| CPU speed at the start (ms of calibration work; lower is faster) | "
         f"{_value(machine.get('cpu_speed_ms'))} |",
+        f"| round trips at the start: SELECT 1 / Redis PING (µs) | {_value(machine.get('select1_us'))} / "
+        f"{_value(machine.get('redis_ping_us'))} |",
         f"| machine busy / steal over the window (% of all CPUs) | {_value(machine.get('busy_pct'))} / "
         f"{_value(machine.get('steal_pct'))} |",
         f"| states/s published | {throughput['states_per_second']} |",
@@ -74,6 +86,27 @@ def run_markdown(result: dict[str, Any]) -> str:
         f"| server total | {_server_cpu(result, 'cpu_seconds')} | {_server_cpu(result, 'cores')} | | |"
     )
     return "\n".join([*lines, "", *_drift_markdown(result)]) + "\n"
+
+
+def run_line(result: dict[str, Any]) -> str:
+    """One run on one line for the console: throughput, latency, server CPU per order (as measured and at
+    the reference hour), the calibration and the round trips at the run's start."""
+    machine, per_order = result["machine"], result.get("cpu_per_order") or {}
+    cal = machine.get("cpu_speed_ms")
+    if result["mode"] == "run":
+        step = result["step_latency_ms"]
+        figures = (
+            f"{result['throughput']['orders_per_second']} orders/s, step p50 / p99 {_value(step['p50'])} / "
+            f"{_value(step['p99'])} ms, server CPU per order {_value(per_order.get('server_ms'))} ms "
+            f"({_value(per_order.get('at_reference_ms'))} ms scaled to cal {REFERENCE_CAL_MS:g}: "
+            f"x {REFERENCE_CAL_MS:g} / {_value(cal)})"
+        )
+    else:
+        figures = f"server {_server_cpu(result, 'cores')} cores"
+    return (
+        f"{figures}; cal {_value(cal)} ms (lower is faster), round trips SELECT 1 "
+        f"{_value(machine.get('select1_us'))} µs, Redis PING {_value(machine.get('redis_ping_us'))} µs"
+    )
 
 
 def _drift_markdown(result: dict[str, Any]) -> list[str]:
@@ -104,7 +137,7 @@ def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
         "| label | mode | N | K | Q | delay s | state Hz | orders/s "
         "| step p50 | step p95 | step p99 | step max | start p50 | start p99 "
         "| missions done / failed | server cores | " + " | ".join(SERVER_GROUPS) + " | generator "
-        "| CPU speed ms |"
+        "| server CPU ms/order | at cal 134 | CPU speed ms | SELECT 1 µs | PING µs |"
     )
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for result in sorted(results, key=_order):
@@ -126,12 +159,21 @@ def summary_markdown(results: Sequence[dict[str, Any]]) -> str:
             _server_cpu(result, "cores"),
             *(cpu[group]["cores"] if group in cpu else "-" for group in SERVER_GROUPS),
             cpu[GENERATOR]["cores"],
-            _value(result["machine"].get("cpu_speed_ms")),  # runs from before it was measured: -
+            *(
+                _value((result.get("cpu_per_order") or {}).get(key))
+                for key in ("server_ms", "at_reference_ms")
+            ),
+            # runs from before these were measured: -
+            *(_value(result["machine"].get(key)) for key in ("cpu_speed_ms", "select1_us", "redis_ping_us")),
         ]
         lines.append("| " + " | ".join(str(cell) for cell in cells) + " |")
     notes = (
-        "Latencies in ms; CPU in cores (CPU seconds per second of the measurement window); CPU speed: ms of "
-        "fixed calibration work at the run's start (lower is faster)."
+        "Latencies in ms; CPU in cores (CPU seconds per second of the measurement window); server CPU per "
+        "order: the server groups' CPU seconds in the window / orders finished in it, in ms, and scaled to "
+        f"the reference hour (x {REFERENCE_CAL_MS:g} / CPU speed: what it would have been on the machine "
+        "as fast as then; a slower machine scales down); CPU speed (cal): ms of fixed calibration work at "
+        "the run's start (lower is faster); SELECT 1 and PING: µs per round trip to the stack's PostgreSQL "
+        "and Redis at the run's start."
     )
     machines = sorted({machine_line(result["machine"]) for result in results})
     return "\n".join([*lines, "", notes, *(f"Machine: {line}." for line in machines)]) + "\n"
@@ -230,6 +272,105 @@ def write_summary(results: Sequence[dict[str, Any]], output: Path, name: str) ->
     table.write_text(summary_markdown(results))
     plot(results, image)
     return table, image
+
+
+# --- A/B: two source trees' runs in interleaved pairs (bench.suite --ab) ----------------------------------
+
+AB_FIGURES = {  # name in the comparison -> how to read it from a run's result
+    "cpu_ms_per_order": lambda r: (r.get("cpu_per_order") or {}).get("server_ms"),
+    "cpu_ms_at_cal_134": lambda r: (r.get("cpu_per_order") or {}).get("at_reference_ms"),
+    "orders_per_s": lambda r: r["throughput"]["orders_per_second"],
+    "step_p50_ms": lambda r: r["step_latency_ms"]["p50"],
+    "step_p99_ms": lambda r: r["step_latency_ms"]["p99"],
+    "cal_ms": lambda r: r["machine"].get("cpu_speed_ms"),
+    "select1_us": lambda r: r["machine"].get("select1_us"),
+    "redis_ping_us": lambda r: r["machine"].get("redis_ping_us"),
+}
+
+
+def ab_comparison(
+    pairs: Sequence[dict[str, dict[str, dict[str, Any]]]],
+    order: Sequence[tuple[int, str]],
+    trees: dict[str, str],
+) -> dict[str, Any]:
+    """Per run of the suite: each pair's figures of side ``a`` (the reference) and ``b`` (this tree), the
+    ratio b / a of their server CPU per order (below 1: this tree takes less), the median ratio over the
+    pairs, and the medians of every figure per side. ``pairs[i][side][run name]`` is a result of bench.fleet;
+    ``order`` is the order the runs went in, ``trees`` names each side's source."""
+    names = list(pairs[0]["a"])
+    runs = {}
+    for name in names:
+        rows = []
+        for pair in pairs:
+            figures = {
+                side: {key: read(pair[side][name]) for key, read in AB_FIGURES.items()} for side in "ab"
+            }
+            a, b = figures["a"]["cpu_ms_per_order"], figures["b"]["cpu_ms_per_order"]
+            rows.append({**figures, "cpu_ratio": round(b / a, 3) if a and b is not None else None})
+        ratios = [row["cpu_ratio"] for row in rows if row["cpu_ratio"] is not None]
+        runs[name] = {
+            "pairs": rows,
+            "median_cpu_ratio": round(statistics.median(ratios), 3) if ratios else None,
+            "median": {
+                side: {
+                    key: _median([row[side][key] for row in rows if row[side][key] is not None])
+                    for key in AB_FIGURES
+                }
+                for side in "ab"
+            },
+        }
+    return {
+        "trees": trees,
+        "pairs": len(pairs),
+        "order": [f"{side}{n + 1}" for n, side in order],
+        "runs": runs,
+    }
+
+
+def ab_markdown(comparison: dict[str, Any]) -> str:
+    trees = comparison["trees"]
+    lines = [
+        f"## A/B: a = {trees['a']}, b = {trees['b']}",
+        "",
+        f"{comparison['pairs']} pairs, each run on a freshly started stack of its side's tree, in the order "
+        f"{' '.join(comparison['order'])}. Ratio: b / a of server CPU per order (below 1: b takes less).",
+    ]
+    for name, run in comparison["runs"].items():
+        lines += [
+            "",
+            f"### {name}: median ratio b / a {_value(run['median_cpu_ratio'])}",
+            "",
+            "| pair | a CPU ms/order | b CPU ms/order | b / a | a / b orders/s | a / b step p50 ms "
+            "| a / b step p99 ms | a / b cal ms |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        rows = [(str(number + 1), row) for number, row in enumerate(run["pairs"])]
+        median = run["median"]
+        for label, row in [*rows, ("median", {**median, "cpu_ratio": run["median_cpu_ratio"]})]:
+            a, b = row["a"], row["b"]
+            cells = [
+                label,
+                _value(a["cpu_ms_per_order"]),
+                _value(b["cpu_ms_per_order"]),
+                _value(row["cpu_ratio"]),
+            ]
+            cells += [
+                f"{_value(a[key])} / {_value(b[key])}"
+                for key in ("orders_per_s", "step_p50_ms", "step_p99_ms", "cal_ms")
+            ]
+            lines.append("| " + " | ".join(cells) + " |")
+        a, b = median["a"], median["b"]
+        lines.append(
+            f"\nMedians at the reference hour (x {REFERENCE_CAL_MS:g} / cal): a "
+            f"{_value(a['cpu_ms_at_cal_134'])}, b {_value(b['cpu_ms_at_cal_134'])} ms/order; "
+            f"round trips SELECT 1 / PING (µs): a {_value(a['select1_us'])} / {_value(a['redis_ping_us'])}, "
+            f"b {_value(b['select1_us'])} / {_value(b['redis_ping_us'])}."
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _median(values: Sequence[float]) -> float | None:
+    return round(statistics.median(values), 3) if values else None
 
 
 def machine_line(machine: dict[str, Any]) -> str:
