@@ -102,7 +102,7 @@ class CurrentOrder:
 
     def drop(self, reason: str, besides: ActionRun | None = None) -> None:
         """Abandon the rest: unfinished actions (but ``besides``) FAILED, node/edge states emptied,
-        orderId kept. The robot stops too (``Drive.stop``)."""
+        orderId kept. The caller stops the robot as well (``Drive.stop``)."""
         for run in self.runs.values():
             if run is not besides and not run.done:
                 run.fail(reason)
