@@ -1,8 +1,8 @@
-"""The actions a simulated robot can perform, and what each one does when it runs.
+"""The actions a simulated robot can perform, what each one does when it runs, and how it is running.
 
 Node and edge actions become an ``ActionPlan`` (how long, whether it fails, what it changes); instant
-actions are carried out by the robot model itself, this module only names and describes them so the
-factsheet can list everything.
+actions are carried out by ``simulator.instant``, this module only names and describes them so the
+factsheet can list everything. Every action the robot knows of is an ``ActionRun``.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from enum import StrEnum
 from typing import Any
 
 from vda5050.maps import MAP_DOWNLOAD_LINK, MAP_HASH, MAP_ID, MAP_VERSION
-from vda5050.models import Action, ActionScope, ActionType, ValueDataType
+from vda5050.models import Action, ActionScope, ActionState, ActionStatus, ActionType, ValueDataType
+from vda5050.state import FINAL_ACTION_STATUSES
 
 LOAD_MAP_SECONDS = 1.0
 DOWNLOAD_MAP_SECONDS = 1.0  # a downloadMap is RUNNING this long, then the map is there, DISABLED
@@ -158,6 +159,39 @@ class ActionPlan:
     fails: bool = False
     result: str = "done"
     effects: tuple[Effect, ...] = field(default=())
+
+
+@dataclass
+class ActionRun:
+    """An action the robot knows of: one entry of ``actionStates`` plus how it is running."""
+
+    action: Action
+    status: ActionStatus = ActionStatus.WAITING
+    result: str | None = None
+    plan: ActionPlan | None = None
+    ends_at: float | None = None  # None while running: until an outside event (stopTeleop)
+    instant: bool = False  # reported in 3.0's instantActionStates, not actionStates
+
+    @property
+    def done(self) -> bool:
+        return self.status in FINAL_ACTION_STATUSES
+
+    def finish(self, result: str) -> None:
+        self.status = ActionStatus.FINISHED
+        self.result = result
+
+    def fail(self, reason: str) -> None:
+        self.status = ActionStatus.FAILED
+        self.result = reason
+
+    def to_state(self) -> ActionState:
+        return ActionState(
+            action_id=self.action.action_id,
+            action_type=self.action.action_type,
+            action_description=self.action.action_description,
+            action_status=self.status,
+            result_description=self.result,
+        )
 
 
 def plan_order_action(action: Action, instant: bool) -> ActionPlan:

@@ -21,7 +21,8 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
 from simulator.config import Credentials
-from simulator.robot import Outgoing, SimulatedRobot
+from simulator.outbox import Publication
+from simulator.robot import SimulatedRobot
 from vda5050.topics import Topic
 
 logger = logging.getLogger(__name__)
@@ -132,7 +133,7 @@ class RobotLink:
             return
         self.closed.clear()
 
-    def publish(self, messages: Iterable[Outgoing]) -> None:
+    def publish(self, messages: Iterable[Publication]) -> None:
         if not self.online:
             return
         for message in messages:

@@ -25,7 +25,8 @@ import pytest
 from paho.mqtt.enums import CallbackAPIVersion
 
 from simulator.config import RobotConfig, SimulationSettings, parse_robot_spec
-from simulator.robot import Outgoing, SimulatedRobot
+from simulator.outbox import Publication
+from simulator.robot import SimulatedRobot
 from tests.vda5050.schemas import validate_message
 from tests.waiting import wait_for
 from vda5050.codec import encode, header_for, parse_state
@@ -100,11 +101,11 @@ class RobotHarness:
         self.settings = SimulationSettings(**settings)
         self.now = T0
         self.robot = SimulatedRobot(self.config, self.settings, now=self.now)
-        self.sent: list[Outgoing] = []
+        self.sent: list[Publication] = []
         self._header_ids = itertools.count()
         self.record(self.robot.connected(self.now))
 
-    def record(self, messages: list[Outgoing]) -> list[Outgoing]:
+    def record(self, messages: list[Publication]) -> list[Publication]:
         for message in messages:
             validate(message.kind, orjson.loads(message.payload))
         self.sent += messages
@@ -114,22 +115,22 @@ class RobotHarness:
         header = header_for(self.robot.address, header_id=next(self._header_ids), at=datetime.now(UTC))
         return header.model_copy(update=overrides)
 
-    def send_order(self, order: OrderContent | bytes, **header_overrides: Any) -> list[Outgoing]:
+    def send_order(self, order: OrderContent | bytes, **header_overrides: Any) -> list[Publication]:
         payload = order if isinstance(order, bytes) else encode(order, self.header(**header_overrides))
         return self.record(self.robot.receive(Topic.ORDER, payload, self.now))
 
-    def send_actions(self, *actions: Action, **header_overrides: Any) -> list[Outgoing]:
+    def send_actions(self, *actions: Action, **header_overrides: Any) -> list[Publication]:
         payload = encode(InstantActionsContent(actions=list(actions)), self.header(**header_overrides))
         return self.record(self.robot.receive(Topic.INSTANT_ACTIONS, payload, self.now))
 
-    def tick(self, count: int = 1) -> list[Outgoing]:
+    def tick(self, count: int = 1) -> list[Publication]:
         messages = []
         for _ in range(count):
             self.now += self.settings.tick_period
             messages += self.record(self.robot.tick(self.now))
         return messages
 
-    def run(self, seconds: float) -> list[Outgoing]:
+    def run(self, seconds: float) -> list[Publication]:
         return self.tick(math.ceil(seconds / self.settings.tick_period - 1e-9))
 
     def run_until(
@@ -148,7 +149,7 @@ class RobotHarness:
     def action_state(self, action_id: str) -> ActionState:
         return next(a for a in self.state.action_states if a.action_id == action_id)
 
-    def states(self, messages: list[Outgoing] | None = None) -> list[State]:
+    def states(self, messages: list[Publication] | None = None) -> list[State]:
         return [
             parse_state(m.payload)
             for m in (self.sent if messages is None else messages)

@@ -7,7 +7,7 @@ import math
 import orjson
 import pytest
 
-from simulator.motion import Pose, Target, step_towards
+from simulator.motion import Target, VehiclePose, step_towards
 from tests.simulator.conftest import RobotHarness, route
 from vda5050.models import Edge
 from vda5050.topics import Topic
@@ -15,7 +15,7 @@ from vda5050.topics import Topic
 
 def test_motion_goes_along_x_then_y_then_turns() -> None:
     target = Target.of(1.0, 0.5, math.pi / 2, None, None)
-    poses = [Pose(0.0, 0.0, 0.0)]
+    poses = [VehiclePose(0.0, 0.0, 0.0)]
     while not target.reached_by(poses[-1]):
         poses.append(step_towards(poses[-1], target, 0.25))
     xs = [(p.x, p.y, p.theta) for p in poses]
@@ -27,14 +27,14 @@ def test_motion_goes_along_x_then_y_then_turns() -> None:
 
 def test_turning_takes_the_short_way_round() -> None:
     target = Target.of(0.0, 0.0, -3.0, None, None)
-    assert step_towards(Pose(0.0, 0.0, 3.0), target, 0.1).theta == pytest.approx(3.1)
+    assert step_towards(VehiclePose(0.0, 0.0, 3.0), target, 0.1).theta == pytest.approx(3.1)
 
 
 def test_zero_or_negative_deviation_means_the_default_tolerance() -> None:
     for deviation in (None, 0.0, -1.0):
         target = Target.of(1.0, 0.0, None, deviation, deviation)
-        assert target.reached_by(Pose(1.04, 0.0, 0.0))
-        assert not target.reached_by(Pose(1.06, 0.0, 0.0))
+        assert target.reached_by(VehiclePose(1.04, 0.0, 0.0))
+        assert not target.reached_by(VehiclePose(1.06, 0.0, 0.0))
 
 
 def test_route_is_driven_node_by_node_and_progress_is_published() -> None:
