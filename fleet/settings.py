@@ -77,6 +77,7 @@ INSTALLED_APPS = [
     "missions",
     "changes",
     "workers",
+    "agents",
 ]
 
 MIDDLEWARE = [
