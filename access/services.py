@@ -76,8 +76,12 @@ def writes_via(via: str) -> Iterator[None]:
         _WRITES_VIA.reset(reset)
 
 
+def writes_via_now() -> str:
+    """What the writes made now come through (WriteRecord.via), for a write recorded in plain SQL."""
+    return _WRITES_VIA.get()
+
+
 def write_record(*, actor: str, action: WriteAction, object_name: str) -> WriteRecord:
     """Record a write; call it inside the write's transaction, so both are stored or neither."""
-    return WriteRecord.objects.create(
-        actor=actor, action=action, object_name=object_name, via=_WRITES_VIA.get()
-    )
+    via = writes_via_now()
+    return WriteRecord.objects.create(actor=actor, action=action, object_name=object_name, via=via)

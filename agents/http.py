@@ -115,7 +115,7 @@ def _in_django(work: Callable[[], T]) -> T:
 def _authenticate(header: bytes) -> Caller | str:
     """The caller `Authorization: <header>` names, or why it is refused (the API's words)."""
     try:
-        found = BearerTokenAuthentication().authenticate(SimpleNamespace(META={"HTTP_AUTHORIZATION": header}))
+        found = BearerTokenAuthentication().authenticate(SimpleNamespace(headers={"authorization": header}))
     except AuthenticationFailed as error:
         return str(error.detail)
     if found is not None:

@@ -13,9 +13,10 @@ import sys
 from collections.abc import Sequence
 
 from mcp import ClientSession, types
-from mcp.client.streamable_http import streamablehttp_client
+from mcp.client.streamable_http import streamable_http_client
 from mcp.server.lowlevel import Server
 from mcp.server.stdio import stdio_server
+from mcp.shared._httpx_utils import create_mcp_http_client
 
 URL_VARIABLE = "MISSION_DISPATCH_URL"
 TOKEN_VARIABLE = "MISSION_DISPATCH_TOKEN"
@@ -27,7 +28,8 @@ async def serve(url: str, token: str) -> None:
     """Serve `url`'s tools on stdio until the client closes stdin."""
     endpoint = url.rstrip("/") + "/mcp"
     async with (
-        streamablehttp_client(endpoint, headers={"Authorization": f"Bearer {token}"}) as (read, write, _),
+        create_mcp_http_client(headers={"Authorization": f"Bearer {token}"}) as http,
+        streamable_http_client(endpoint, http_client=http, terminate_on_close=False) as (read, write, _),
         ClientSession(read, write) as remote,
     ):
         started = await remote.initialize()

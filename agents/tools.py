@@ -28,7 +28,7 @@ from rest_framework.renderers import JSONRenderer
 from access.choices import VIA_MCP
 from access.services import writes_via
 from fleet.api import HEALTH_STATUS, body_validated, exception_handler
-from missions.api.serializers import MissionCreateSerializer, MissionSerializer, RouteUpdatesField
+from missions.api.serializers import NODE_KINDS, MissionCreateSerializer, MissionSerializer, RouteUpdatesField
 from missions.selectors import mission_get, mission_list
 from missions.services import mission_cancel, mission_create, mission_update_routes
 from missions.vocabulary import MissionState, RobotState
@@ -210,9 +210,7 @@ def _tree_text(mission: dict[str, Any]) -> str:
 
     def lines(parent: str, depth: int) -> Iterable[str]:
         for node in children.get(parent, []):
-            kind = next(
-                (kind for kind, params in node.items() if kind not in ("name", "parent") and params), ""
-            )
+            kind = next(kind for kind in NODE_KINDS if node.get(kind) is not None)
             status = node_status.get(node["name"], {})
             error = f" ({status['error_msg']})" if status.get("error_msg") else ""
             yield f"{'  ' * depth}- {node['name']} [{kind}]: {status.get('state', 'PENDING')}{error}"
