@@ -8,6 +8,7 @@ message) and, for writes, the same write records (actor `token:<name>`, `via` mc
 runs on one of the API's request threads (`agents.http`), never in the event loop.
 """
 
+import inspect
 import json
 import logging
 import re
@@ -102,15 +103,32 @@ SERVER = FleetMCP(
 # --- helpers ------------------------------------------------------------------------------------------
 
 
-async def _run(ctx: Context, work: Callable[[Any], tuple[str, dict[str, Any]]]) -> CallToolResult:
-    """`work(caller)` on a request thread: its text and the API's JSON as the tool's result, or the API's
-    refusal as a tool error (never a traceback)."""
-    call = ctx.request_context.request.scope[CALL]
-    text, data = await call.run(lambda: _answer(work, call.caller))
-    return CallToolResult(content=[TextContent(type="text", text=text)], structuredContent=data)
+Answer = tuple[str, dict[str, Any]]  # a tool's text, and the API's JSON as its structured content
 
 
-def _answer(work: Callable[[Any], tuple[str, dict[str, Any]]], caller: Any) -> tuple[str, dict[str, Any]]:
+def tool(name: str, description: str, annotations: ToolAnnotations) -> Callable[[Callable], Callable]:
+    """Register `work(caller, **arguments) -> (text, data)` as the tool `name`: its arguments (and their
+    schema) are `work`'s after `caller`; it runs on a request thread, its refusals become tool errors."""
+
+    def register(work: Callable[..., Answer]) -> Callable[..., Answer]:
+        async def run(ctx: Context, **arguments: Any) -> CallToolResult:
+            call = ctx.request_context.request.scope[CALL]
+            text, data = await call.run(
+                lambda: _answer(lambda caller: work(caller, **arguments), call.caller)
+            )
+            return CallToolResult(content=[TextContent(type="text", text=text)], structuredContent=data)
+
+        parameters = list(inspect.signature(work).parameters.values())[1:]
+        context = inspect.Parameter("ctx", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Context)
+        run.__signature__ = inspect.Signature([context, *parameters], return_annotation=CallToolResult)
+        run.__annotations__ = {"ctx": Context, **{p.name: p.annotation for p in parameters}}
+        SERVER.add_tool(run, name=name, description=description, annotations=annotations)
+        return work
+
+    return register
+
+
+def _answer(work: Callable[[Any], Answer], caller: Any) -> Answer:
     try:
         with writes_via(VIA_MCP):
             return work(caller)
@@ -223,7 +241,7 @@ def _tree_text(mission: dict[str, Any]) -> str:
 # --- the reference's tools ----------------------------------------------------------------------------
 
 
-@SERVER.tool(
+@tool(
     name="test_mission_dispatch_connection",
     description=(
         "Check that Mission Dispatch answers and this token works: the server's status, how many robots "
@@ -231,26 +249,23 @@ def _tree_text(mission: dict[str, Any]) -> str:
     ),
     annotations=READS,
 )
-async def test_mission_dispatch_connection(ctx: Context) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        data = {
-            "status": HEALTH_STATUS,
-            "robots": robot_list().count(),
-            "missions": mission_list().count(),
-            "token": caller.name,
-            "read_only": caller.read_only,
-        }
-        text = (
-            "**Mission Dispatch Connection OK**\n\n"
-            f"- Status: {HEALTH_STATUS}\n- Robots: {data['robots']}\n- Missions: {data['missions']}\n"
-            f"- Token: {caller.name} ({'read only' if caller.read_only else 'read and write'})\n"
-        )
-        return text, data
-
-    return await _run(ctx, work)
+def test_mission_dispatch_connection(caller: Any) -> Answer:
+    data = {
+        "status": HEALTH_STATUS,
+        "robots": robot_list().count(),
+        "missions": mission_list().count(),
+        "token": caller.name,
+        "read_only": caller.read_only,
+    }
+    text = (
+        "**Mission Dispatch Connection OK**\n\n"
+        f"- Status: {HEALTH_STATUS}\n- Robots: {data['robots']}\n- Missions: {data['missions']}\n"
+        f"- Token: {caller.name} ({'read only' if caller.read_only else 'read and write'})\n"
+    )
+    return text, data
 
 
-@SERVER.tool(
+@tool(
     name="get_robot_status",
     description=(
         "Robots and their status (state, online, battery, position, errors): all of them, those in one "
@@ -258,23 +273,20 @@ async def test_mission_dispatch_connection(ctx: Context) -> CallToolResult:
     ),
     annotations=READS,
 )
-async def get_robot_status(
-    ctx: Context,
+def get_robot_status(
+    caller: Any,
     state: Annotated[RobotStateName | None, Field(description="Only robots in this state.")] = None,
     robot_name: Annotated[Name | None, Field(description="Only this robot (state is then ignored).")] = None,
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        if robot_name:
-            robot = api_json(RobotSerializer(robot_get(name=robot_name)).data)
-            return f"**Robot {robot_name} Status**\n\n{robot_text(robot)}", {"robots": [robot]}
-        robots = _robots(state=state)
-        title = f"Robots in {state} state" if state else "All Robots"
-        return _listing(title, robots, robot_text, "No robots found."), {"robots": robots}
-
-    return await _run(ctx, work)
+) -> Answer:
+    if robot_name:
+        robot = api_json(RobotSerializer(robot_get(name=robot_name)).data)
+        return f"**Robot {robot_name} Status**\n\n{robot_text(robot)}", {"robots": [robot]}
+    robots = _robots(state=state)
+    title = f"Robots in {state} state" if state else "All Robots"
+    return _listing(title, robots, robot_text, "No robots found."), {"robots": robots}
 
 
-@SERVER.tool(
+@tool(
     name="get_mission_status",
     description=(
         "Missions and their status (state, robot, start and end, failure): all of them in submission "
@@ -282,63 +294,52 @@ async def get_robot_status(
     ),
     annotations=READS,
 )
-async def get_mission_status(
-    ctx: Context,
+def get_mission_status(
+    caller: Any,
     state: Annotated[MissionStateName | None, Field(description="Only missions in this state.")] = None,
     robot: Annotated[Name | None, Field(description="Only missions of this robot.")] = None,
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        missions = _missions(state=state, robot=robot)
-        where = [f"in {state} state" if state else "", f"for robot {robot}" if robot else ""]
-        title = " ".join(["Missions", *filter(None, where)]) if state or robot else "All Missions"
-        return _listing(title, missions, mission_text, "No missions found."), {"missions": missions}
-
-    return await _run(ctx, work)
+) -> Answer:
+    missions = _missions(state=state, robot=robot)
+    where = [f"in {state} state" if state else "", f"for robot {robot}" if robot else ""]
+    title = " ".join(["Missions", *filter(None, where)]) if state or robot else "All Missions"
+    return _listing(title, missions, mission_text, "No missions found."), {"missions": missions}
 
 
-@SERVER.tool(
+@tool(
     name="get_robots_on_missions",
     description="Robots busy with a mission (state ON_TASK), each with its running and queued missions.",
     annotations=READS,
 )
-async def get_robots_on_missions(ctx: Context) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        robots = _robots(state=RobotState.ON_TASK)
-        missions = [mission for state in ACTIVE_STATES for mission in _missions(state=state)]
-        text = "**Robots Currently On Missions**\n\n"
-        if not robots:
-            text += "No robots are currently on missions.\n"
-        for robot in robots:
-            active = [mission for mission in missions if mission["robot"] == robot["name"]]
-            text += robot_text(robot)
-            text += "".join(f"- Mission: {m['name']} ({m['status']['state']})\n" for m in active) + "\n"
-        names = {robot["name"] for robot in robots}
-        data = {"robots": robots, "missions": [mission for mission in missions if mission["robot"] in names]}
-        return text, data
-
-    return await _run(ctx, work)
+def get_robots_on_missions(caller: Any) -> Answer:
+    robots = _robots(state=RobotState.ON_TASK)
+    missions = [mission for state in ACTIVE_STATES for mission in _missions(state=state)]
+    text = "**Robots Currently On Missions**\n\n"
+    if not robots:
+        text += "No robots are currently on missions.\n"
+    for robot in robots:
+        active = [mission for mission in missions if mission["robot"] == robot["name"]]
+        text += robot_text(robot)
+        text += "".join(f"- Mission: {m['name']} ({m['status']['state']})\n" for m in active) + "\n"
+    names = {robot["name"] for robot in robots}
+    data = {"robots": robots, "missions": [mission for mission in missions if mission["robot"] in names]}
+    return text, data
 
 
-@SERVER.tool(
+@tool(
     name="get_idle_robots",
     description="Robots that are idle (state IDLE), so available for a new mission, and how many are online.",
     annotations=READS,
 )
-async def get_idle_robots(ctx: Context) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        robots = _robots(state=RobotState.IDLE)
-        text = _listing(
-            "Idle Robots Available for Missions", robots, robot_text, "No robots are currently idle."
-        )
-        if robots:
-            online = sum(robot["status"]["online"] for robot in robots)
-            text += f"\nSummary: {len(robots)} idle robots ({online} online)\n"
-        return text, {"robots": robots}
-
-    return await _run(ctx, work)
+def get_idle_robots(caller: Any) -> Answer:
+    robots = _robots(state=RobotState.IDLE)
+    text = _listing("Idle Robots Available for Missions", robots, robot_text, "No robots are currently idle.")
+    if robots:
+        online = sum(robot["status"]["online"] for robot in robots)
+        text += f"\nSummary: {len(robots)} idle robots ({online} online)\n"
+    return text, {"robots": robots}
 
 
-@SERVER.tool(
+@tool(
     name="get_fleet_summary",
     description=(
         "A dashboard of the fleet: robots per state, online share and average battery; missions per state "
@@ -346,47 +347,42 @@ async def get_idle_robots(ctx: Context) -> CallToolResult:
     ),
     annotations=READS,
 )
-async def get_fleet_summary(ctx: Context) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        robots = _robots()
-        batteries = [
-            robot["status"]["battery_level"] for robot in robots if robot["status"]["battery_level"] > 0
-        ]
-        robot_states = Counter(robot["status"]["state"] for robot in robots)
-        mission_states = Counter(mission_list().order_by().values_list("state", flat=True))
-        data = {
-            "robots": {
-                "total": len(robots),
-                "by_state": dict(sorted(robot_states.items())),
-                "online": sum(robot["status"]["online"] for robot in robots),
-                "average_battery": sum(batteries) / len(batteries) if batteries else None,
-            },
-            "missions": {
-                "total": sum(mission_states.values()),
-                "by_state": dict(sorted(mission_states.items())),
-                "active": sum(mission_states[state] for state in ACTIVE_STATES),
-            },
-        }
-        text = "**Mission Dispatch Fleet Dashboard**\n\n## Robot Fleet Status\n"
-        text += "".join(f"- {state}: {count} robots\n" for state, count in data["robots"]["by_state"].items())
-        text += f"\nFleet summary:\n- Total robots: {len(robots)}\n"
-        if robots:
-            online = data["robots"]["online"]
-            text += f"- Online: {online} ({100 * online / len(robots):.1f}%)\n"
-        if batteries:
-            text += f"- Average battery: {data['robots']['average_battery']:.1f}%\n"
-        text += "\n## Mission Status\n"
-        text += "".join(f"- {state}: {n} missions\n" for state, n in data["missions"]["by_state"].items())
-        text += (
-            f"\nMission summary:\n- Total missions: {data['missions']['total']}\n"
-            f"- Currently active: {data['missions']['active']}\n"
-        )
-        return text, data
-
-    return await _run(ctx, work)
+def get_fleet_summary(caller: Any) -> Answer:
+    robots = _robots()
+    batteries = [robot["status"]["battery_level"] for robot in robots if robot["status"]["battery_level"] > 0]
+    robot_states = Counter(robot["status"]["state"] for robot in robots)
+    mission_states = Counter(mission_list().order_by().values_list("state", flat=True))
+    data = {
+        "robots": {
+            "total": len(robots),
+            "by_state": dict(sorted(robot_states.items())),
+            "online": sum(robot["status"]["online"] for robot in robots),
+            "average_battery": sum(batteries) / len(batteries) if batteries else None,
+        },
+        "missions": {
+            "total": sum(mission_states.values()),
+            "by_state": dict(sorted(mission_states.items())),
+            "active": sum(mission_states[state] for state in ACTIVE_STATES),
+        },
+    }
+    text = "**Mission Dispatch Fleet Dashboard**\n\n## Robot Fleet Status\n"
+    text += "".join(f"- {state}: {count} robots\n" for state, count in data["robots"]["by_state"].items())
+    text += f"\nFleet summary:\n- Total robots: {len(robots)}\n"
+    if robots:
+        online = data["robots"]["online"]
+        text += f"- Online: {online} ({100 * online / len(robots):.1f}%)\n"
+    if batteries:
+        text += f"- Average battery: {data['robots']['average_battery']:.1f}%\n"
+    text += "\n## Mission Status\n"
+    text += "".join(f"- {state}: {n} missions\n" for state, n in data["missions"]["by_state"].items())
+    text += (
+        f"\nMission summary:\n- Total missions: {data['missions']['total']}\n"
+        f"- Currently active: {data['missions']['active']}\n"
+    )
+    return text, data
 
 
-@SERVER.tool(
+@tool(
     name="check_robot_health",
     description=(
         "Robots that need attention: offline, battery below a threshold (percent), or reporting errors; "
@@ -394,84 +390,73 @@ async def get_fleet_summary(ctx: Context) -> CallToolResult:
     ),
     annotations=READS,
 )
-async def check_robot_health(
-    ctx: Context,
+def check_robot_health(
+    caller: Any,
     min_battery: Annotated[
         float, Field(ge=0, le=100, description="Battery percentage below which an online robot is low.")
     ] = DEFAULT_MIN_BATTERY,
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        robots = _robots()
-        offline = [r["name"] for r in robots if not r["status"]["online"]]
-        low = {
-            r["name"]: r["status"]["battery_level"]
-            for r in robots
-            if r["status"]["online"] and r["status"]["battery_level"] < min_battery
-        }
-        errors = {r["name"]: r["status"]["errors"] for r in robots if r["status"]["errors"]}
-        healthy = [r["name"] for r in robots if r["name"] not in {*offline, *low, *errors}]
-        text = "**Robot Health Check**\n\n"
-        if offline:
-            text += f"Offline robots ({len(offline)}):\n" + "".join(f"- {name}\n" for name in offline) + "\n"
-        if low:
-            text += f"Low battery robots (< {min_battery}%, {len(low)}):\n"
-            text += "".join(f"- {name}: {battery:.1f}%\n" for name, battery in low.items()) + "\n"
-        if errors:
-            text += f"Robots with errors ({len(errors)}):\n"
-            text += "".join(f"- {name}: {_error_names(value)}\n" for name, value in errors.items()) + "\n"
-        if healthy:
-            text += f"Healthy robots ({len(healthy)}):\n" + "".join(
-                f"- {n}\n" for n in healthy[:HEALTHY_SHOWN]
-            )
-            more = len(healthy) - HEALTHY_SHOWN
-            text += (f"- ... and {more} more\n" if more > 0 else "") + "\n"
-        issues = len(offline) + len(low) + len(errors)
-        if not issues:
-            text += "All robots are healthy.\n\n"
-        text += f"Health summary:\n- Healthy: {len(healthy)}/{len(robots)}\n- Issues: {issues}\n"
-        data = {
-            "min_battery": min_battery,
-            "offline": offline,
-            "low_battery": low,
-            "errors": errors,
-            "healthy": healthy,
-        }
-        return text, data
-
-    return await _run(ctx, work)
+) -> Answer:
+    robots = _robots()
+    offline = [r["name"] for r in robots if not r["status"]["online"]]
+    low = {
+        r["name"]: r["status"]["battery_level"]
+        for r in robots
+        if r["status"]["online"] and r["status"]["battery_level"] < min_battery
+    }
+    errors = {r["name"]: r["status"]["errors"] for r in robots if r["status"]["errors"]}
+    healthy = [r["name"] for r in robots if r["name"] not in {*offline, *low, *errors}]
+    text = "**Robot Health Check**\n\n"
+    if offline:
+        text += f"Offline robots ({len(offline)}):\n" + "".join(f"- {name}\n" for name in offline) + "\n"
+    if low:
+        text += f"Low battery robots (< {min_battery}%, {len(low)}):\n"
+        text += "".join(f"- {name}: {battery:.1f}%\n" for name, battery in low.items()) + "\n"
+    if errors:
+        text += f"Robots with errors ({len(errors)}):\n"
+        text += "".join(f"- {name}: {_error_names(value)}\n" for name, value in errors.items()) + "\n"
+    if healthy:
+        text += f"Healthy robots ({len(healthy)}):\n" + "".join(f"- {n}\n" for n in healthy[:HEALTHY_SHOWN])
+        more = len(healthy) - HEALTHY_SHOWN
+        text += (f"- ... and {more} more\n" if more > 0 else "") + "\n"
+    issues = len(offline) + len(low) + len(errors)
+    if not issues:
+        text += "All robots are healthy.\n\n"
+    text += f"Health summary:\n- Healthy: {len(healthy)}/{len(robots)}\n- Issues: {issues}\n"
+    data = {
+        "min_battery": min_battery,
+        "offline": offline,
+        "low_battery": low,
+        "errors": errors,
+        "healthy": healthy,
+    }
+    return text, data
 
 
-@SERVER.tool(
+@tool(
     name="get_mission_queue",
     description="Missions waiting to start (PENDING), in the order they will run, with why each waits.",
     annotations=READS,
 )
-async def get_mission_queue(ctx: Context) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        missions = _missions(state=MissionState.PENDING)
-        text = _listing(
-            "Mission Queue (Pending Missions)", missions, mission_text, "No missions currently pending."
-        )
-        return text, {"missions": missions}
-
-    return await _run(ctx, work)
+def get_mission_queue(caller: Any) -> Answer:
+    missions = _missions(state=MissionState.PENDING)
+    text = _listing(
+        "Mission Queue (Pending Missions)", missions, mission_text, "No missions currently pending."
+    )
+    return text, {"missions": missions}
 
 
-@SERVER.tool(
+@tool(
     name="get_recent_failures",
     description="Failed missions, newest first, with their failure reason and category.",
     annotations=READS,
 )
-async def get_recent_failures(ctx: Context) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        missions = _missions(state=MissionState.FAILED)[::-1]
-        text = _listing("Recent Mission Failures", missions, mission_text, "No failed missions found.")
-        return text, {"missions": missions}
-
-    return await _run(ctx, work)
+def get_recent_failures(caller: Any) -> Answer:
+    missions = _missions(state=MissionState.FAILED)[::-1]
+    text = _listing("Recent Mission Failures", missions, mission_text, "No failed missions found.")
+    return text, {"missions": missions}
 
 
-@SERVER.tool(
+@tool(
     name="create_robot",
     description=(
         "Add a robot to the fleet (as POST /robot with the default spec). Its name is its VDA 5050 serial "
@@ -479,23 +464,20 @@ async def get_recent_failures(ctx: Context) -> CallToolResult:
     ),
     annotations=WRITES,
 )
-async def create_robot(
-    ctx: Context,
+def create_robot(
+    caller: Any,
     name: Annotated[Name, Field(description="The robot's name, unique in the fleet.")],
     labels: Annotated[
         list[str] | None, Field(description='Free labels of the robot, e.g. ["forklift"].')
     ] = None,
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        spec = body_validated(RobotCreateSerializer, {"name": name, **({"labels": labels} if labels else {})})
-        robot = robot_create(actor=caller.actor, name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec)
-        data = api_json(RobotSerializer(robot).data)
-        return f"**Robot Created Successfully**\n\n{robot_text(data)}", data
-
-    return await _run(ctx, work)
+) -> Answer:
+    spec = body_validated(RobotCreateSerializer, {"name": name, **({"labels": labels} if labels else {})})
+    robot = robot_create(actor=caller.actor, name=spec.pop("name"), prefix=spec.pop("prefix"), spec=spec)
+    data = api_json(RobotSerializer(robot).data)
+    return f"**Robot Created Successfully**\n\n{robot_text(data)}", data
 
 
-@SERVER.tool(
+@tool(
     name="dispatch_mission",
     description=(
         "Send a robot to a point: a mission with one route to (x, y) facing theta, queued behind the "
@@ -503,8 +485,8 @@ async def create_robot(
     ),
     annotations=WRITES,
 )
-async def dispatch_mission(
-    ctx: Context,
+def dispatch_mission(
+    caller: Any,
     robot: Annotated[Name, Field(description="The robot to send.")],
     x: Annotated[float, Field(description="Target x coordinate, metres.")],
     y: Annotated[float, Field(description="Target y coordinate, metres.")],
@@ -515,29 +497,26 @@ async def dispatch_mission(
     map_id: Annotated[
         str | None, Field(description="Map of the point; default: the map the robot is on.")
     ] = None,
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        if map_id is None:
-            known = robot_list(filters=_query(names=robot)).first()
-            point_map = known.pose_map_id if known is not None and known.pose_map_id else ""
-        else:
-            point_map = map_id
-        target = f"move_to_{x:.2f}_{y:.2f}"
-        body = {
-            "robot": robot,
-            "mission_tree": [
-                {
-                    "name": target,
-                    "route": {"waypoints": [{"x": x, "y": y, "theta": theta, "map_id": point_map}]},
-                }
-            ],
-            **({"name": mission_name} if mission_name else {"prefix": target}),
-        }
-        mission = _mission_create(caller, body)
-        text = f"**Mission Dispatched Successfully**\n\n{mission_text(mission)}"
-        return text + f"\nTarget: ({x:.2f}, {y:.2f}) @ {theta:.2f} rad\n", mission
-
-    return await _run(ctx, work)
+) -> Answer:
+    if map_id is None:
+        known = robot_list(filters=_query(names=robot)).first()
+        point_map = known.pose_map_id if known is not None and known.pose_map_id else ""
+    else:
+        point_map = map_id
+    target = f"move_to_{x:.2f}_{y:.2f}"
+    body = {
+        "robot": robot,
+        "mission_tree": [
+            {
+                "name": target,
+                "route": {"waypoints": [{"x": x, "y": y, "theta": theta, "map_id": point_map}]},
+            }
+        ],
+        **({"name": mission_name} if mission_name else {"prefix": target}),
+    }
+    mission = _mission_create(caller, body)
+    text = f"**Mission Dispatched Successfully**\n\n{mission_text(mission)}"
+    return text + f"\nTarget: ({x:.2f}, {y:.2f}) @ {theta:.2f} rad\n", mission
 
 
 def _mission_create(caller: Any, body: dict[str, Any]) -> dict[str, Any]:
@@ -550,7 +529,7 @@ def _mission_create(caller: Any, body: dict[str, Any]) -> dict[str, Any]:
 # --- beyond the reference -------------------------------------------------------------------------------
 
 
-@SERVER.tool(
+@tool(
     name="get_mission",
     description=(
         "One mission in full: its state, robot, failure or waiting reason, and its tree with each node's "
@@ -558,17 +537,12 @@ def _mission_create(caller: Any, body: dict[str, Any]) -> dict[str, Any]:
     ),
     annotations=READS,
 )
-async def get_mission(
-    ctx: Context, name: Annotated[Name, Field(description="The mission's name.")]
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        mission = api_json(MissionSerializer(mission_get(name=name)).data)
-        return f"{mission_text(mission)}\nTree:\n{_tree_text(mission)}", mission
-
-    return await _run(ctx, work)
+def get_mission(caller: Any, name: Annotated[Name, Field(description="The mission's name.")]) -> Answer:
+    mission = api_json(MissionSerializer(mission_get(name=name)).data)
+    return f"{mission_text(mission)}\nTree:\n{_tree_text(mission)}", mission
 
 
-@SERVER.tool(
+@tool(
     name="create_mission",
     description=(
         "Submit any mission, exactly as POST /mission: a behaviour tree (mission_tree) for a robot. Each "
@@ -579,8 +553,8 @@ async def get_mission(
     ),
     annotations=WRITES,
 )
-async def create_mission(
-    ctx: Context,
+def create_mission(
+    caller: Any,
     robot: Any,
     mission_tree: Any,
     name: Any = None,
@@ -589,7 +563,7 @@ async def create_mission(
     deadline: Any = None,
     needs_canceled: Any = None,
     update_nodes: Any = None,
-) -> CallToolResult:
+) -> Answer:
     # Untyped here: the arguments are POST /mission's body, validated by its serializer alone (the
     # advertised schema is the API's, `create_mission_schema`). An argument sent as null is left out.
     arguments = {
@@ -602,14 +576,8 @@ async def create_mission(
         "needs_canceled": needs_canceled,
         "update_nodes": update_nodes,
     }
-
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        mission = _mission_create(
-            caller, {key: value for key, value in arguments.items() if value is not None}
-        )
-        return f"**Mission Created**\n\n{mission_text(mission)}\nTree:\n{_tree_text(mission)}", mission
-
-    return await _run(ctx, work)
+    mission = _mission_create(caller, {key: value for key, value in arguments.items() if value is not None})
+    return f"**Mission Created**\n\n{mission_text(mission)}\nTree:\n{_tree_text(mission)}", mission
 
 
 @cache
@@ -647,7 +615,7 @@ def _json_schema(node: Any) -> Any:
     return converted
 
 
-@SERVER.tool(
+@tool(
     name="cancel_mission",
     description=(
         "Cancel a mission: a queued one is CANCELED at once; a running one is stopped by the robot "
@@ -655,27 +623,19 @@ def _json_schema(node: Any) -> Any:
     ),
     annotations=STOPS,
 )
-async def cancel_mission(
-    ctx: Context, name: Annotated[Name, Field(description="The mission's name.")]
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        mission = mission_cancel(actor=caller.actor, mission=mission_get(name=name))
-        data = api_json(MissionSerializer(mission).data)
-        return f"Mission {name} will be canceled.\n\n{mission_text(data)}", data
-
-    return await _run(ctx, work)
+def cancel_mission(caller: Any, name: Annotated[Name, Field(description="The mission's name.")]) -> Answer:
+    mission = mission_cancel(actor=caller.actor, mission=mission_get(name=name))
+    data = api_json(MissionSerializer(mission).data)
+    return f"Mission {name} will be canceled.\n\n{mission_text(data)}", data
 
 
-async def _teleop(ctx: Context, robot: str, action: TeleopAction) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        changed = robot_teleop(actor=caller.actor, robot=robot_get(name=robot), action=action)
-        data = api_json(RobotSerializer(changed).data)
-        return f"{action} teleop action received.\n\n{robot_text(data)}", data
-
-    return await _run(ctx, work)
+def _teleop(caller: Any, robot: str, action: TeleopAction) -> Answer:
+    changed = robot_teleop(actor=caller.actor, robot=robot_get(name=robot), action=action)
+    data = api_json(RobotSerializer(changed).data)
+    return f"{action} teleop action received.\n\n{robot_text(data)}", data
 
 
-@SERVER.tool(
+@tool(
     name="start_teleop",
     description=(
         "Put a robot in teleoperation (VDA 5050 startTeleop): it stops following missions until stop_teleop. "
@@ -683,24 +643,20 @@ async def _teleop(ctx: Context, robot: str, action: TeleopAction) -> CallToolRes
     ),
     annotations=WRITES,
 )
-async def start_teleop(
-    ctx: Context, robot: Annotated[Name, Field(description="The robot.")]
-) -> CallToolResult:
-    return await _teleop(ctx, robot, TeleopAction.START)
+def start_teleop(caller: Any, robot: Annotated[Name, Field(description="The robot.")]) -> Answer:
+    return _teleop(caller, robot, TeleopAction.START)
 
 
-@SERVER.tool(
+@tool(
     name="stop_teleop",
     description="Take a robot out of teleoperation (VDA 5050 stopTeleop); its mission goes on.",
     annotations=WRITES,
 )
-async def stop_teleop(
-    ctx: Context, robot: Annotated[Name, Field(description="The robot.")]
-) -> CallToolResult:
-    return await _teleop(ctx, robot, TeleopAction.STOP)
+def stop_teleop(caller: Any, robot: Annotated[Name, Field(description="The robot.")]) -> Answer:
+    return _teleop(caller, robot, TeleopAction.STOP)
 
 
-@SERVER.tool(
+@tool(
     name="update_route",
     description=(
         "Give a route node of a queued or running mission new waypoints (as POST /mission/{name}/update); "
@@ -708,22 +664,17 @@ async def stop_teleop(
     ),
     annotations=WRITES,
 )
-async def update_route(
-    ctx: Context,
+def update_route(
+    caller: Any,
     mission: Annotated[Name, Field(description="The mission's name.")],
     node: Annotated[Name, Field(description="The route node's name in the mission tree.")],
     waypoints: Annotated[
         list[dict[str, Any]],
         Field(description='The new waypoints, e.g. [{"x": 1.5, "y": 2.0, "theta": 0, "map_id": "map"}].'),
     ],
-) -> CallToolResult:
-    def work(caller: Any) -> tuple[str, dict[str, Any]]:
-        update_nodes = RouteUpdatesField().run_validation({node: {"waypoints": waypoints}})
-        mission_update_routes(
-            actor=caller.actor, mission=mission_get(name=mission), update_nodes=update_nodes
-        )
-        data = api_json(RouteUpdatesField().to_representation(update_nodes))
-        points = ", ".join(f"({p['x']:.2f}, {p['y']:.2f})" for p in data[node]["waypoints"])
-        return f"Route {node} of mission {mission} updated: {points}\n", data
-
-    return await _run(ctx, work)
+) -> Answer:
+    update_nodes = RouteUpdatesField().run_validation({node: {"waypoints": waypoints}})
+    mission_update_routes(actor=caller.actor, mission=mission_get(name=mission), update_nodes=update_nodes)
+    data = api_json(RouteUpdatesField().to_representation(update_nodes))
+    points = ", ".join(f"({p['x']:.2f}, {p['y']:.2f})" for p in data[node]["waypoints"])
+    return f"Route {node} of mission {mission} updated: {points}\n", data

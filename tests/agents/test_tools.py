@@ -6,7 +6,7 @@ from datetime import UTC, datetime, timedelta
 import pytest
 
 from tests.agents.conftest import text
-from tests.e2e.helpers import route, wait_mission
+from tests.e2e.helpers import route, wait_mission, wait_mission_where
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -65,12 +65,15 @@ def test_reference_tools_answer_what_rest_answers(mcp, api, unique):
     idle, other = unique("idle"), unique("other")
     for name in (idle, other):
         _post(api, "/robot", {"name": name, "labels": ["mcp"]})
-    _post(api, "/mission", {"name": unique("queued"), "robot": idle, "mission_tree": [route("r", (1, 1))]})
+    queued = unique("queued")
+    _post(api, "/mission", {"name": queued, "robot": idle, "mission_tree": [route("r", (1, 1))]})
     past = (datetime.now(UTC) - timedelta(minutes=1)).isoformat()
     late = unique("late")
     body = {"name": late, "robot": other, "mission_tree": [route("r", (1, 1))], "deadline": past}
     _post(api, "/mission", body)
     wait_mission(api, late, {"FAILED"})  # a mission past its deadline never starts
+    # The fleet at rest, so both answers see the same data: the queued mission waits for its robot.
+    wait_mission_where(api, queued, lambda status: status["waiting_reason"], message="a waiting reason")
 
     robots, missions = api.get("/robot").json(), api.get("/mission").json()
     assert mcp.ok("get_robot_status").structuredContent == {"robots": robots}
@@ -117,7 +120,9 @@ def test_tools_beyond_the_reference(mcp, api, unique):
         {"name": "pause", "action": {"action_type": "dummy_action", "action_parameters": {"time": 1}}},
     ]
     created = mcp.ok("create_mission", robot=robot, mission_tree=tree, name=name, timeout=60)
-    assert created.structuredContent == api.get(f"/mission/{name}").json()
+    stored = api.get(f"/mission/{name}").json()
+    assert created.structuredContent.pop("status")["state"] == "PENDING"
+    assert created.structuredContent == {key: value for key, value in stored.items() if key != "status"}
     shown = mcp.ok("get_mission", name=name)
     assert shown.structuredContent == api.get(f"/mission/{name}").json()
     assert "  - fallback [selector]: PENDING" in text(shown)
