@@ -23,7 +23,7 @@ from mcp.server.fastmcp.exceptions import ToolError
 from mcp.server.transport_security import TransportSecuritySettings
 from mcp.types import CallToolResult, TextContent, ToolAnnotations
 from mcp.types import Tool as McpTool
-from pydantic import Field
+from pydantic import Field, ValidationError
 from rest_framework.renderers import JSONRenderer
 
 from access.choices import VIA_MCP
@@ -82,7 +82,16 @@ class FleetMCP(FastMCP):
         call = self._call()
         if tool is not None and not call.may_call(tool.annotations):
             raise ToolError(f'The token "{call.caller.name}" is read-only: it may not call {name}.')
-        return await super().call_tool(name, arguments)
+        try:
+            return await super().call_tool(name, arguments)
+        except ToolError as error:
+            if not isinstance(error.__cause__, ValidationError):
+                raise
+            # Arguments of the wrong type or missing: one `argument: message` each, as the API's errors.
+            wrong = "; ".join(
+                f"{'.'.join(map(str, each['loc']))}: {each['msg']}" for each in error.__cause__.errors()
+            )
+            raise ToolError(f"Invalid arguments for {name}: {wrong}") from None
 
     def _call(self) -> Any:
         request = self.get_context().request_context.request
@@ -122,6 +131,7 @@ def tool(name: str, description: str, annotations: ToolAnnotations) -> Callable[
         context = inspect.Parameter("ctx", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Context)
         run.__signature__ = inspect.Signature([context, *parameters], return_annotation=CallToolResult)
         run.__annotations__ = {"ctx": Context, **{p.name: p.annotation for p in parameters}}
+        run.__name__ = work.__name__  # the name argument errors give (`dispatch_missionArguments`)
         SERVER.add_tool(run, name=name, description=description, annotations=annotations)
         return work
 
