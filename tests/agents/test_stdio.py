@@ -3,6 +3,7 @@ server's tools with the token from its environment."""
 
 import asyncio
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from tests.agents.conftest import text
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 CONSOLE_SCRIPT = str(Path(sys.executable).with_name("mission-dispatch-mcp"))
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _through_stdio(url: str, token: str, robot: str) -> tuple[set[str], str, str]:
@@ -45,9 +47,10 @@ def test_stdio_serves_the_running_servers_tools(server, api, api_token, unique):
     assert api.get(f"/robot/{robot}").status_code == 200
 
 
-def test_stdio_without_a_token_says_so(server):
+@pytest.mark.parametrize("command", [[CONSOLE_SCRIPT], [sys.executable, "manage.py", "mcp"]])
+def test_stdio_without_a_token_says_so(server, command):
     env = {key: value for key, value in os.environ.items() if key != "MISSION_DISPATCH_TOKEN"}
-    import subprocess
-
-    done = subprocess.run([CONSOLE_SCRIPT, "--url", server.api_url], env=env, capture_output=True, timeout=60)
-    assert done.returncode != 0 and b"MISSION_DISPATCH_TOKEN" in done.stderr
+    done = subprocess.run(
+        [*command, "--url", server.api_url], cwd=ROOT, env=env, capture_output=True, timeout=60
+    )
+    assert done.returncode != 0 and b"Set MISSION_DISPATCH_TOKEN" in done.stderr
