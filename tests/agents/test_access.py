@@ -57,10 +57,17 @@ def test_no_token_an_unknown_or_a_revoked_one_is_refused(server, db):
     )
 
 
-def test_writes_are_recorded_under_the_token_as_through_mcp(mcp, unique):
-    robot = unique("r")
+def test_writes_are_recorded_under_the_token_as_through_mcp(mcp, api, unique):
+    robot, mission = unique("r"), unique("m")
     mcp.ok("create_robot", name=robot)
-    mcp.ok("dispatch_mission", robot=robot, x=1, y=2, mission_name=unique("m"))
+    mcp.ok("dispatch_mission", robot=robot, x=1, y=2, mission_name=mission)
+    mcp.ok("cancel_mission", name=mission)
+    assert api.post("/robot", {"name": unique("rest")}).status_code == 200
+    actor = f"token:{API_TOKEN_NAME}"
     records = list(WriteRecord.objects.order_by("id").values_list("actor", "action", "object_name", "via"))
-    assert records[0] == (f"token:{API_TOKEN_NAME}", "robot_create", robot, "mcp")
-    assert records[1][0::3] == (f"token:{API_TOKEN_NAME}", "mcp") and records[1][1] == "mission_create"
+    assert records == [
+        (actor, "robot_create", robot, "mcp"),
+        (actor, "mission_create", mission, "mcp"),
+        (actor, "mission_cancel", mission, "mcp"),
+        (actor, "robot_create", unique("rest"), ""),  # through the REST API: not marked
+    ]

@@ -170,7 +170,9 @@ def test_bad_arguments_are_tool_errors_naming_the_argument(mcp, api, unique):
     assert bad_label.isError and "labels.0: " in text(bad_label)
 
     robot = unique("r")
-    mcp.ok("create_robot", name=robot)
+    created = mcp.ok("create_robot", name=robot, labels=["forklift", "zone:a"])
+    assert created.structuredContent == api.get(f"/robot/{robot}").json()
+    assert created.structuredContent["labels"] == ["forklift", "zone:a"]
     duplicate = mcp.call("create_robot", name=robot)
     assert duplicate.isError and f"Object robot with name {robot} already exists" in text(duplicate)
     missing_mission = mcp.call("get_mission", name="nowhere")
