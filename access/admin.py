@@ -39,8 +39,8 @@ class ApiTokenAdmin(APIKeyModelAdmin):
 
 @admin.register(WriteRecord)
 class WriteRecordAdmin(admin.ModelAdmin):
-    list_display = ("at", "actor", "action", "object_name")
-    list_filter = ("action",)
+    list_display = ("at", "actor", "action", "object_name", "via")
+    list_filter = ("action", "via")
     search_fields = ("actor", "object_name")
     date_hierarchy = "at"
 

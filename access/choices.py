@@ -18,6 +18,11 @@ def command_actor(command: str) -> str:
     return f"command:{command}"
 
 
+# WriteRecord.via of a write made through the MCP server's tools (agents/); the API, the admin and the
+# commands leave it empty.
+VIA_MCP = "mcp"
+
+
 class WriteAction(models.TextChoices):
     """Every write the API (and the admin) can make; one WriteRecord each."""
 

@@ -49,6 +49,12 @@ class WriteRecord(models.Model):
     )
     action = models.CharField(max_length=32, choices=WriteAction.choices)
     object_name = models.CharField(max_length=100, help_text="The robot or mission written.")
+    via = models.CharField(
+        max_length=16,
+        blank=True,
+        default="",
+        help_text="mcp for a write through the MCP server's tools; empty for the API, the admin, a command.",
+    )
 
     class Meta:
         ordering = ["-at", "-id"]

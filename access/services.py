@@ -2,6 +2,9 @@
 inside their own transaction)."""
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 from django.db import IntegrityError, transaction
@@ -58,6 +61,27 @@ def dev_token_ensure(*, path: Path) -> str:
     return key
 
 
+# What the writes recorded in this context came through (WriteRecord.via), set by `writes_via`.
+_WRITES_VIA: ContextVar[str] = ContextVar("writes_via", default="")
+
+
+@contextmanager
+def writes_via(via: str) -> Iterator[None]:
+    """The write records made inside are marked as coming through `via` (the MCP server's tools call the
+    same services as the API, which need not know who calls them)."""
+    reset = _WRITES_VIA.set(via)
+    try:
+        yield
+    finally:
+        _WRITES_VIA.reset(reset)
+
+
+def writes_via_now() -> str:
+    """What the writes made now come through (WriteRecord.via), for a write recorded in plain SQL."""
+    return _WRITES_VIA.get()
+
+
 def write_record(*, actor: str, action: WriteAction, object_name: str) -> WriteRecord:
     """Record a write; call it inside the write's transaction, so both are stored or neither."""
-    return WriteRecord.objects.create(actor=actor, action=action, object_name=object_name)
+    via = writes_via_now()
+    return WriteRecord.objects.create(actor=actor, action=action, object_name=object_name, via=via)

@@ -10,6 +10,8 @@ WSGI), but not on the same threads:
   with its database connection when the stream ends; the stream itself is a coroutine (changes.stream),
   so hundreds of open streams take none of the REST threads. At most FLEET_STREAM_OPENINGS streams' requests
   run at once, so watchers that all connect at once do not take every database connection there is.
+- The MCP server (POST /mcp, `agents.http`) authenticates like the API and runs its tools' Django work on
+  the REST threads.
 """
 
 import asyncio
@@ -34,6 +36,8 @@ from fleet.serving import STREAM_PATHS, api_process_start
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "fleet.settings")
 django.setup(set_prefix=False)  # as django.core.asgi.get_asgi_application
+
+from agents.http import MCP_PATHS, McpEndpoint  # noqa: E402 (its tools import the apps' models)
 
 Scope = dict[str, Any]
 Message = dict[str, Any]
@@ -129,6 +133,7 @@ class RequestThreads:
 
 
 REQUEST_THREADS = RequestThreads(settings.API_THREADS)
+MCP = McpEndpoint(REQUEST_THREADS)
 
 
 async def application(scope: Scope, receive: Receive, send: Any) -> None:
@@ -138,6 +143,9 @@ async def application(scope: Scope, receive: Receive, send: Any) -> None:
         return
     if scope["type"] != "http":
         await rest_application(scope, receive, send)  # Django's handler refuses it
+        return
+    if scope["path"] in MCP_PATHS:
+        await MCP(scope, receive, send)
         return
     thread = await REQUEST_THREADS.borrow()
     try:

@@ -77,6 +77,7 @@ INSTALLED_APPS = [
     "missions",
     "changes",
     "workers",
+    "agents",
 ]
 
 MIDDLEWARE = [
@@ -296,6 +297,8 @@ LOGGING = {
         }
     },
     "root": {"handlers": ["console"], "level": env_str("FLEET_LOG_LEVEL", "INFO")},
+    # The MCP SDK logs every request at INFO ("Processing request of type ..."); the access log has them.
+    "loggers": {"mcp": {"level": "WARNING"}},
 }
 # Celery's worker and beat replace the root logger's handlers with their own text format unless told not to.
 CELERY_WORKER_HIJACK_ROOT_LOGGER = LOG_FORMAT == "plain"

@@ -15,7 +15,7 @@ from django.utils import timezone
 
 from access.choices import WriteAction
 from access.models import WriteRecord
-from access.services import write_record
+from access.services import write_record, writes_via_now
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
@@ -87,7 +87,8 @@ def _mission_insert(mission: Mission, *, actor: str) -> bool:
         nullcontext() if transaction.get_autocommit() else transaction.atomic(),
         connection.cursor() as cursor,
     ):
-        cursor.execute(MISSION_INSERT_SQL, [*values, actor, WriteAction.MISSION_CREATE.value])
+        record = [actor, WriteAction.MISSION_CREATE.value, writes_via_now()]
+        cursor.execute(MISSION_INSERT_SQL, [*values, *record])
         mission.queue_position, queued_behind_others = cursor.fetchone()
     # What Model.save() records: the instance is now a stored row.
     mission._state.adding = False
@@ -224,8 +225,8 @@ MISSION_INSERT_SQL = f"""
         VALUES ({", ".join(["%s"] * len(MISSION_INSERT_FIELDS))})
         RETURNING name, robot, queue_position
     ), record AS (
-        INSERT INTO {WriteRecord._meta.db_table} (at, actor, action, object_name)
-        SELECT now(), %s, %s, name FROM new
+        INSERT INTO {WriteRecord._meta.db_table} (at, actor, action, object_name, via)
+        SELECT now(), %s, %s, name, %s FROM new
     )
     SELECT queue_position, mission_queued_behind(robot, queue_position) FROM new
 """

@@ -67,5 +67,6 @@ class Command(BaseCommand):
             f"It is kept in {file}; clients send it as Authorization: Bearer <token>:\n"
             f"  export TOKEN=$(cat {file})\n"
             f'  curl -H "Authorization: Bearer $TOKEN" localhost:{port}/robot\n'
-            f"Swagger UI: http://localhost:{port}/docs (Authorize, paste the token)."
+            f"Swagger UI: http://localhost:{port}/docs (Authorize, paste the token).\n"
+            f"MCP server for AI assistants: http://localhost:{port}/mcp, the same token (README, MCP server)."
         )
