@@ -29,8 +29,6 @@ from datetime import datetime
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.sparse import csr_array
-from scipy.sparse.csgraph import maximum_bipartite_matching
 
 __all__ = [
     "ALL_BUSY",
@@ -324,17 +322,19 @@ def _solve_band(
 
 
 def _oldest_served(feasible: np.ndarray) -> np.ndarray:
-    """Which rows (oldest first) get a robot: all if they can be served together; else the oldest set
-    that can, as the rows of a maximum-weight matching whose weights fall with age (a matroid's greedy
-    basis: no younger row is served in place of an older one it could have given way to)."""
+    """Which rows (oldest first) get a robot: the oldest set that can be served together (a transversal
+    matroid's greedy basis, so no younger row is served in place of an older one it could have given way
+    to), as the least total weight, weights falling with age, of the rows left without a robot they can
+    use. Columns of "none" make every row assigned: the square form scipy solves fast (the same weights as
+    gains on feasible pairs took it 40 times as long on 1,000 missions for 950 robots)."""
     count, robots = feasible.shape
     if feasible.all():
         return np.arange(min(count, robots))
-    matched = maximum_bipartite_matching(csr_array(feasible), perm_type="column")
-    if (matched >= 0).all():
-        return np.arange(count)
     weight = np.arange(count, 0, -1, dtype=float)[:, None]
-    chosen_rows, chosen_columns = linear_sum_assignment(np.where(feasible, -weight, 0.0))
+    none = np.broadcast_to(weight, (count, max(0, count - robots)))
+    chosen_rows, chosen_columns = linear_sum_assignment(np.hstack([np.where(feasible, 0.0, weight), none]))
+    real = chosen_columns < robots
+    chosen_rows, chosen_columns = chosen_rows[real], chosen_columns[real]
     return np.sort(chosen_rows[feasible[chosen_rows, chosen_columns]])
 
 
