@@ -69,8 +69,8 @@ WAITING_TURN = "Waiting for a higher-priority or older mission"
 # IDLE_TIE metres are equal and then the longest idle robot is the cheaper by up to IDLE_TIE.
 IDLE_TIE = 1e-6
 
-# A capability check's first failing requirement (the stage), or CAPABLE.
-_LABELS, _ROBOT_TYPE, _ACTION_TYPES, _MAPS, CAPABLE = range(5)
+# A capability check's first failing requirement (the stage), or _CAPABLE.
+_LABELS, _ROBOT_TYPE, _ACTION_TYPES, _MAPS, _CAPABLE = range(5)
 
 
 @dataclass(frozen=True)
@@ -230,7 +230,7 @@ class _Capability:
 
     def capable(self, rows: np.ndarray) -> np.ndarray:
         """(rows x robots) booleans."""
-        return (self.stage == CAPABLE)[self.mission_kind[rows]][:, self.robot_kind]
+        return (self.stage == _CAPABLE)[self.mission_kind[rows]][:, self.robot_kind]
 
     def reason(self, row: int, mission: UnboundMission, fleet: _Fleet) -> str:
         """Why the mission of the row waits: the same for every mission of its kind."""
@@ -258,7 +258,7 @@ class _Capability:
             if missing:
                 return NO_MAP.format(map_id=missing[0])
             return NO_MAPS_TOGETHER.format(map_ids=", ".join(sorted(mission.maps)))
-        online = (stages == CAPABLE) & fleet.online
+        online = (stages == _CAPABLE) & fleet.online
         if not online.any():
             return NONE_ONLINE
         charged = online & fleet.battery_ok
@@ -284,7 +284,7 @@ def _stage(
     action_types: frozenset[str] | None,
     enabled_maps: frozenset[str] | None,
 ) -> int:
-    """The first requirement a robot with these abilities does not meet, or CAPABLE."""
+    """The first requirement a robot with these abilities does not meet, or _CAPABLE."""
     if not selector.labels <= labels:
         return _LABELS
     if selector.robot_types and robot_type not in selector.robot_types:
@@ -293,7 +293,7 @@ def _stage(
         return _ACTION_TYPES
     if enabled_maps is not None and not maps <= enabled_maps:
         return _MAPS
-    return CAPABLE
+    return _CAPABLE
 
 
 def _solve_band(
