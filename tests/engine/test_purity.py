@@ -1,5 +1,5 @@
-"""The pure modules stay pure: importing the vocabulary, the engine, the dispatch step or the VDA 5050
-package pulls in neither Django, paho, Redis nor Celery."""
+"""The pure modules stay pure: importing the vocabulary, the engine, the dispatch step, the assignment or
+the VDA 5050 package pulls in neither Django, paho, Redis nor Celery (numpy and SciPy are pure enough)."""
 
 import subprocess
 import sys
@@ -21,6 +21,7 @@ print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "red
         "dispatch.step",
         "dispatch.records",
         "dispatch.held",
+        "dispatch.assignment",
         "vda5050",
         "vda5050.codec",
         "vda5050.models",
