@@ -21,7 +21,7 @@ from workers.step_runs import NOTIFY_TASK, step_and_publish
 logger = logging.getLogger(__name__)
 
 # The reference's retryable notify statuses.
-RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
+RETRYABLE_HTTP_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 
 
 @shared_task(name=STEP_TASK, bind=True, ignore_result=True, max_retries=None)
@@ -43,9 +43,23 @@ def step_robots(self: Task, names: list[str], requested_at: float | None = None)
         raise self.retry(args=(failed, requested_at), countdown=delay)
 
 
-@shared_task(name=NOTIFY_TASK, bind=True, ignore_result=True, max_retries=None)
+class NotifyFailedRetryably(Exception):
+    """A notify call that failed in a way the reference tries again: no response, or a retryable status."""
+
+
+@shared_task(
+    name=NOTIFY_TASK,
+    bind=True,
+    ignore_result=True,
+    autoretry_for=(NotifyFailedRetryably,),
+    max_retries=settings.NOTIFY_RETRIES,
+    retry_backoff=settings.NOTIFY_BACKOFF_SECONDS,  # s before the first retry, doubling per retry
+    retry_backoff_max=settings.NOTIFY_BACKOFF_SECONDS * 2**settings.NOTIFY_RETRIES,  # no cap of Celery's
+    retry_jitter=False,
+)
 def run_notify(self: Task, mission: str, node: str) -> None:
-    """POST the notify node's json_data to its url; retry retryable failures with exponential backoff."""
+    """POST the notify node's json_data to its url; a retryable failure is tried again (by Celery, with
+    backoff) while retries are left, and any other outcome finishes the node."""
     params = mission_selectors.notify_params(mission=mission, node=node)
     if params is None:
         return  # the mission ended or moved on meanwhile
@@ -56,9 +70,9 @@ def run_notify(self: Task, mission: str, node: str) -> None:
     else:
         ok = response.status_code == 200
         detail = f"Notify got HTTP {response.status_code} from {params['url']}"
-        retryable = response.status_code in RETRYABLE_STATUSES
-    if not ok and retryable and self.request.retries < settings.NOTIFY_RETRIES:
-        raise self.retry(countdown=settings.NOTIFY_BACKOFF_SECONDS * 2**self.request.retries)
+        retryable = response.status_code in RETRYABLE_HTTP_STATUSES
+    if not ok and retryable and self.request.retries < self.max_retries:
+        raise NotifyFailedRetryably(detail)
     mission_notify_finished(mission=mission, node=node, success=ok, error_msg=None if ok else detail)
 
 
