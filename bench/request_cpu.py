@@ -25,7 +25,7 @@ from rest_framework.test import APIClient  # noqa: E402
 from access.services import api_token_create  # noqa: E402
 from bench.measure import cpu_speed_ms  # noqa: E402
 from fleet.celery import app  # noqa: E402
-from workers import steps  # noqa: E402
+from workers import step_requests  # noqa: E402
 
 PREFIX = "request-cpu-"
 ROBOTS = 200
@@ -64,7 +64,7 @@ def main() -> None:
 
     def send_step_task(index: int) -> None:
         # to a queue no worker reads: the cost of publishing, not of stepping
-        app.send_task(steps.STEP_TASK, ([robots[index % ROBOTS]], time.time()), queue=f"{run}-queue")
+        app.send_task(step_requests.STEP_TASK, ([robots[index % ROBOTS]], time.time()), queue=f"{run}-queue")
 
     print(f"calibration work: {cpu_speed_ms()} ms (lower is faster)")
     print(f"POST /mission: {_cpu_ms_per_call(post_mission, calls):.2f} ms CPU per call")

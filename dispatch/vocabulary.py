@@ -1,5 +1,5 @@
-"""The fleet's vocabulary, defined once: mission and node states, node kinds, failure categories, robot
-states and lifecycles, spelled as in the reference API.
+"""The fleet's vocabulary, defined once: mission and node states, node kinds (and a notify node's default
+timeout), failure categories, robot states and lifecycles, spelled as in the reference API.
 
 Pure Python (no Django, paho or Redis imports), so the pure modules (``dispatch.engine``,
 ``dispatch.step``) use these enums directly, and the Django choices (``missions.choices``,
@@ -9,7 +9,15 @@ serialize to the plain strings stored in the database and in JSON.
 
 from enum import StrEnum
 
-__all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionState", "NodeKind", "RobotState"]
+__all__ = [
+    "DEFAULT_NOTIFY_TIMEOUT",
+    "DONE_STATES",
+    "FailureCategory",
+    "Lifecycle",
+    "MissionState",
+    "NodeKind",
+    "RobotState",
+]
 
 
 class MissionState(StrEnum):
@@ -45,6 +53,10 @@ class NodeKind(StrEnum):
     ACTION = "action"
     NOTIFY = "notify"
     CONSTANT = "constant"
+
+
+# Seconds a notify node's call waits for its response when the node does not say: the reference's default.
+DEFAULT_NOTIFY_TIMEOUT = 30
 
 
 class RobotState(StrEnum):

@@ -320,7 +320,8 @@ DISPATCH_BEAT_PERIOD = env_float("FLEET_BEAT_PERIOD", 1.0)
 DISPATCH_STALL_CHECK_SECONDS = env_float("FLEET_STALL_CHECK_SECONDS", 5.0)
 # Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
 NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
-NOTIFY_BACKOFF_SECONDS = env_float("FLEET_NOTIFY_BACKOFF_SECONDS", 1.0)
+# The backoff is Celery's (`retry_backoff`), in whole seconds.
+NOTIFY_BACKOFF_SECONDS = env_int("FLEET_NOTIFY_BACKOFF_SECONDS", 1)
 
 # --- MQTT bridge ----------------------------------------------------------------------------------
 # Slow-changing robot status (pose, battery, ...) is written to PostgreSQL at most this often per robot.

@@ -10,7 +10,7 @@ from django.db.models.fields.json import KT
 from django.utils import timezone
 
 from dispatch.held import order_finished, order_lacked
-from dispatch.vocabulary import MissionState
+from dispatch.vocabulary import DEFAULT_NOTIFY_TIMEOUT, MissionState
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from missions.filters import MissionFilter
@@ -18,8 +18,6 @@ from missions.models import Mission
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
-
-NOTIFY_DEFAULT_TIMEOUT = 30  # seconds, the reference's default
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -46,7 +44,7 @@ def notify_params(*, mission: str, node: str) -> dict[str, Any] | None:
         return None
     for entry in row["mission_tree"]:
         if entry.get("name") == node and "notify" in entry:
-            return {"timeout": NOTIFY_DEFAULT_TIMEOUT, **entry["notify"]}
+            return {"timeout": DEFAULT_NOTIFY_TIMEOUT, **entry["notify"]}
     return None
 
 

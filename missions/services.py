@@ -20,7 +20,7 @@ from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tr
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
 from kit.api.rows import lock_row
-from kit.wake import wake_robot
+from kit.wake import request_steps
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.models import Mission
 from missions.rows import MISSION_FIELDS, mission_columns, mission_db_values, mission_row_delete
@@ -66,7 +66,7 @@ def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Ma
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
     if not queued_behind_others:
-        wake_robot(mission.robot)
+        request_steps([mission.robot])
     return mission
 
 
@@ -111,7 +111,7 @@ def mission_cancel(*, actor: str, mission: Mission) -> Mission:
             locked.needs_canceled = True
         locked.save(update_fields=[*CANCEL_FIELDS, "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_CANCEL, object_name=locked.name)
-        wake_robot(locked.robot)
+        request_steps([locked.robot])
     return locked
 
 
@@ -122,7 +122,7 @@ def mission_delete(*, actor: str, mission: Mission) -> Mission | None:
     with transaction.atomic():
         locked = lock_row(mission)
         write_record(actor=actor, action=WriteAction.MISSION_DELETE, object_name=locked.name)
-        wake_robot(locked.robot)
+        request_steps([locked.robot])
         if locked.state == MissionState.RUNNING:
             locked.lifecycle = Lifecycle.PENDING_DELETE
             locked.needs_canceled = True
@@ -147,7 +147,7 @@ def mission_update_routes(
         locked.update_nodes = {**(locked.update_nodes or {}), **_plain(update_nodes)}
         locked.save(update_fields=["update_nodes", "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
-        wake_robot(locked.robot)
+        request_steps([locked.robot])
     return locked
 
 
@@ -211,7 +211,7 @@ def mission_notify_finished(*, mission: str, node: str, success: bool, error_msg
         if not success:
             locked.failure_reason = error_msg
         locked.save(update_fields=["node_status", "failure_reason", "updated_at"])
-        wake_robot(locked.robot)
+        request_steps([locked.robot])
 
 
 # queue_position is left to its database default: the next value of the queue sequence (NextQueuePosition).

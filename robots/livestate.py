@@ -235,7 +235,7 @@ def _latest_state(name: str, before: list[Command]) -> LatestState:
 
 def step_marker_key(name: str) -> str:
     """Exists while a step of the robot is queued and has not read the robot's state yet (`state_for_step`)
-    (`workers.steps.request_steps` sets it): at most one queued step per robot."""
+    (`workers.step_requests.queue_steps` sets it): at most one queued step per robot."""
     return f"{PREFIX}:step-queued:{name}"
 
 

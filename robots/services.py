@@ -14,7 +14,7 @@ from dispatch.vocabulary import MissionState
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_for_create
 from kit.api.rows import lock_row
-from kit.wake import wake_robot
+from kit.wake import request_steps
 from missions.models import Mission
 from robots import livestate
 from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, MapAction, SettingSource, TeleopAction
@@ -47,7 +47,7 @@ def robot_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapp
             write_record(actor=actor, action=WriteAction.ROBOT_CREATE, object_name=robot.name)
             if settings.DISPATCH_REQUEST_FACTSHEET:
                 _queue_instant_action(robot, FACTSHEET_REQUEST)
-            wake_robot(robot.name)
+            request_steps([robot.name])
     except IntegrityError as error:
         if Robot.objects.filter(name=robot_name).exists():
             raise ObjectError.exists("robot", robot_name) from error
@@ -65,7 +65,7 @@ def robot_update_spec(*, actor: str, robot: Robot, spec: Mapping[str, Any]) -> R
                 setattr(locked, field, value)
             locked.save(update_fields=[*fields, "updated_at"])
             write_record(actor=actor, action=WriteAction.ROBOT_UPDATE, object_name=locked.name)
-            wake_robot(locked.name)
+            request_steps([locked.name])
     except IntegrityError as error:
         raise _identity_taken(fields) from error
     return locked
@@ -80,7 +80,7 @@ def robot_delete(*, actor: str, robot: Robot) -> Robot | None:
     with transaction.atomic():
         locked = lock_row(robot)
         write_record(actor=actor, action=WriteAction.ROBOT_DELETE, object_name=locked.name)
-        wake_robot(locked.name)
+        request_steps([locked.name])
         if Mission.objects.filter(robot=locked.name, state=MissionState.RUNNING).exists():
             locked.lifecycle = Lifecycle.PENDING_DELETE
             locked.save(update_fields=["lifecycle", "updated_at"])
@@ -120,7 +120,7 @@ def robot_teleop(*, actor: str, robot: Robot, action: TeleopAction) -> Robot:
         locked.save(update_fields=["switch_teleop", "updated_at"])
         _queue_instant_action(locked, START_TELEOP if locked.switch_teleop else STOP_TELEOP)
         write_record(actor=actor, action=WriteAction.ROBOT_TELEOP, object_name=locked.name)
-        wake_robot(locked.name)
+        request_steps([locked.name])
     return locked
 
 
@@ -155,7 +155,7 @@ def robot_map_action(
             raise UsageError(error.reason) from error
         queued = _queue_instant_action(locked, action, parameters)
         write_record(actor=actor, action=WriteAction.ROBOT_MAP, object_name=locked.name)
-        wake_robot(locked.name)
+        request_steps([locked.name])
     return queued
 
 

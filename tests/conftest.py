@@ -34,8 +34,8 @@ def api(api_token: str) -> APIClient:
 
 @pytest.fixture
 def woken(monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    """Robots the services asked the dispatch engine to step (kit.wake.wake_robot), in call order."""
+    """Robots the services asked the dispatch engine to step (kit.wake.request_steps), in call order."""
     names: list[str] = []
-    monkeypatch.setattr(robots.services, "wake_robot", names.append)
-    monkeypatch.setattr(missions.services, "wake_robot", names.append)
+    monkeypatch.setattr(robots.services, "request_steps", names.extend)
+    monkeypatch.setattr(missions.services, "request_steps", names.extend)
     return names

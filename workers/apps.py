@@ -7,6 +7,6 @@ class WorkersConfig(AppConfig):
     def ready(self) -> None:
         """Domain services ask for steps through `kit.wake`; here they become Celery step tasks."""
         from kit import wake
-        from workers.steps import request_steps_soon
+        from workers.step_requests import queue_steps_soon
 
-        wake.install(request_steps_soon)
+        wake.install(queue_steps_soon)

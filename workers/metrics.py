@@ -36,7 +36,7 @@ STEP_LATENCY = f"{livestate.PREFIX}:metrics:step-latency"
 LATENCY_BUCKETS = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
 
 MESSAGES_IN = "messages_in"  # labels: topic
-MESSAGES_INVALID = "messages_invalid"  # labels: topic, reason (workers.bridge.Drop): dropped unread
+MESSAGES_INVALID = "messages_invalid"  # labels: topic, reason (workers.bridge.gate.Drop): dropped unread
 MESSAGES_IGNORED = "messages_ignored"  # labels: topic, reason (replayed, stale): read, older than known
 MESSAGES_OUT = "messages_out"  # labels: topic
 ORDER_REJECTIONS = "order_rejections"

@@ -11,6 +11,8 @@ from typing import Any
 import paho.mqtt.client as mqtt
 from django.conf import settings
 
+from workers import tuning
+
 logger = logging.getLogger(__name__)
 
 
@@ -104,8 +106,6 @@ class Publisher:
         return info.rc == mqtt.MQTT_ERR_SUCCESS
 
 
-# How long a process's first message waits for the publisher's connection (the broker may be down).
-FIRST_CONNECT_SECONDS = 5.0
 _publisher: Publisher | None = None
 _publisher_pid: int | None = None
 _publisher_lock = threading.Lock()
@@ -113,10 +113,10 @@ _publisher_lock = threading.Lock()
 
 def publisher() -> Publisher:
     """The publisher of this process (created after a fork, never shared across processes), connected
-    unless the broker did not answer within FIRST_CONNECT_SECONDS."""
+    unless the broker did not answer within tuning.FIRST_CONNECT_SECONDS."""
     global _publisher, _publisher_pid
     with _publisher_lock:
         if _publisher is None or _publisher_pid != os.getpid():
             _publisher, _publisher_pid = Publisher(), os.getpid()
-            _publisher.wait_connected(FIRST_CONNECT_SECONDS)
+            _publisher.wait_connected(tuning.FIRST_CONNECT_SECONDS)
         return _publisher

@@ -14,23 +14,24 @@ from kit.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished
 from robots.status import robot_check_heartbeats
-from workers import stepper, steps
-from workers.stepper import keep_trying, retry_delay, run_step, settle_long_lived_process
+from workers.long_lived import keep_trying, retry_delay, settle_long_lived_process
+from workers.step_requests import STEP_TASK, queue_steps
+from workers.step_runs import NOTIFY_TASK, step_and_publish
 
 logger = logging.getLogger(__name__)
 
 # The reference's retryable notify statuses.
-RETRYABLE_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
+RETRYABLE_HTTP_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
 
 
-@shared_task(name=steps.STEP_TASK, bind=True, ignore_result=True, max_retries=None)
+@shared_task(name=STEP_TASK, bind=True, ignore_result=True, max_retries=None)
 def step_robots(self: Task, names: list[str], requested_at: float | None = None) -> None:
     """Step each robot in turn. Those whose step failed (PostgreSQL or Redis away) are retried together,
     with backoff, until their steps run: nothing else would step a robot whose state arrived meanwhile."""
     failed = []
     for name in names:
         try:
-            run_step(name, requested_at=requested_at)
+            step_and_publish(name, requested_at=requested_at)
         except Exception:
             # The traceback once per outage: thousands of robots fail together while PostgreSQL is away.
             logger.warning("step of robot %s failed", name, exc_info=not failed and not self.request.retries)
@@ -42,9 +43,23 @@ def step_robots(self: Task, names: list[str], requested_at: float | None = None)
         raise self.retry(args=(failed, requested_at), countdown=delay)
 
 
-@shared_task(name=stepper.NOTIFY_TASK, bind=True, ignore_result=True, max_retries=None)
+class NotifyFailedRetryably(Exception):
+    """A notify call that failed in a way the reference tries again: no response, or a retryable status."""
+
+
+@shared_task(
+    name=NOTIFY_TASK,
+    bind=True,
+    ignore_result=True,
+    autoretry_for=(NotifyFailedRetryably,),
+    max_retries=settings.NOTIFY_RETRIES,
+    retry_backoff=settings.NOTIFY_BACKOFF_SECONDS,  # s before the first retry, doubling per retry
+    retry_backoff_max=settings.NOTIFY_BACKOFF_SECONDS * 2**settings.NOTIFY_RETRIES,  # no cap of Celery's
+    retry_jitter=False,
+)
 def run_notify(self: Task, mission: str, node: str) -> None:
-    """POST the notify node's json_data to its url; retry retryable failures with exponential backoff."""
+    """POST the notify node's json_data to its url; a retryable failure is tried again (by Celery, with
+    backoff) while retries are left, and any other outcome finishes the node."""
     params = mission_selectors.notify_params(mission=mission, node=node)
     if params is None:
         return  # the mission ended or moved on meanwhile
@@ -55,9 +70,9 @@ def run_notify(self: Task, mission: str, node: str) -> None:
     else:
         ok = response.status_code == 200
         detail = f"Notify got HTTP {response.status_code} from {params['url']}"
-        retryable = response.status_code in RETRYABLE_STATUSES
-    if not ok and retryable and self.request.retries < settings.NOTIFY_RETRIES:
-        raise self.retry(countdown=settings.NOTIFY_BACKOFF_SECONDS * 2**self.request.retries)
+        retryable = response.status_code in RETRYABLE_HTTP_STATUSES
+    if not ok and retryable and self.request.retries < self.max_retries:
+        raise NotifyFailedRetryably(detail)
     mission_notify_finished(mission=mission, node=node, success=ok, error_msg=None if ok else detail)
 
 
@@ -69,13 +84,13 @@ def check_heartbeats() -> None:
 @shared_task(name="fleet.sweep", ignore_result=True)
 def sweep() -> None:
     """Step robots whose missions or messages wait on time: timeouts, deadlines, resends."""
-    steps.request_steps(mission_selectors.robots_due_for_step())
+    queue_steps(mission_selectors.robots_due_for_step())
 
 
 @shared_task(name="fleet.step_stalled", ignore_result=True)
 def step_stalled() -> None:
     """Step robots that finished their mission's order while the mission did not move on."""
-    steps.request_steps(mission_selectors.robots_stalled())
+    queue_steps(mission_selectors.robots_stalled())
 
 
 @shared_task(name="fleet.trim_changes", ignore_result=True)
@@ -96,7 +111,7 @@ def _step_robots_with_missions() -> None:
     try:
         keep_trying(
             "stepping every robot with work",
-            lambda: steps.request_steps(mission_selectors.robots_with_missions()),
+            lambda: queue_steps(mission_selectors.robots_with_missions()),
         )
     finally:
         connections.close_all()  # this thread's

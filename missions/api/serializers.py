@@ -9,7 +9,7 @@ from django.conf import settings
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
-from dispatch.vocabulary import NodeKind
+from dispatch.vocabulary import DEFAULT_NOTIFY_TIMEOUT, NodeKind
 from kit.api.fields import (
     MAX_SECONDS,
     JsonBooleanField,
@@ -28,7 +28,6 @@ from missions.models import Mission
 from missions.tuning import MAX_NOTIFY_TIMEOUT
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
-DEFAULT_NOTIFY_TIMEOUT = 30
 FREE_JSON_HELP = f"At most {settings.API_MAX_PARAMETERS_BYTES} bytes as JSON."
 
 

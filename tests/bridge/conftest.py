@@ -12,7 +12,7 @@ from robots.models import InstantAction, Robot
 from robots.services import robot_create
 from tests.factories import TEST_ACTOR
 from vda5050.models import ActionStatus
-from workers.bridge import Bridge
+from workers.bridge.loop import Bridge
 
 
 @pytest.fixture

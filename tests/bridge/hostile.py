@@ -18,7 +18,7 @@ from tests.dispatch.builders import robot_state
 from tests.vda5050.samples import full_factsheet
 from vda5050.models import AgvPosition, ConnectionContent, ConnectionState, VisualizationContent
 from workers import metrics
-from workers.bridge import Drop, Ignored
+from workers.bridge.gate import Drop, Ignored
 
 SUBSCRIBED = ("state", "connection", "factsheet", "visualization")
 # A field of each topic's message given a value of the wrong type.

@@ -20,8 +20,8 @@ from vda5050.models import (
     VisualizationContent,
 )
 from vda5050.topics import RobotAddress
-from workers import steps
-from workers.bridge import Bridge
+from workers import step_requests
+from workers.bridge.loop import Bridge
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
 
@@ -69,8 +69,8 @@ def factsheet_message(robot: Robot | str, factsheet: FactsheetContent) -> tuple[
 
 def step_requested(robot: Robot | str) -> bool:
     """Whether a step was queued for the robot since the last check (its marker), which clears it; the
-    steps requested in the background (`steps.request_steps_soon`) are queued first."""
-    steps.flush(timeout=10)
+    steps requested in the background (`step_requests.queue_steps_soon`) are queued first."""
+    step_requests.wait_until_queued(timeout=10)
     name = robot if isinstance(robot, str) else robot.name
     return bool(livestate.client().delete(livestate.step_marker_key(name)))
 

@@ -30,9 +30,8 @@ from tests.bridge.rows import held
 from tests.dispatch.builders import error
 from tests.vda5050.samples import full_factsheet
 from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
-from workers import bridge as bridge_module
-from workers import metrics
-from workers.bridge import Bridge
+from workers import metrics, tuning
+from workers.bridge.loop import Bridge
 
 MakeRobot = Callable[..., Robot]
 
@@ -50,7 +49,7 @@ def _flush_statements(bridge: Bridge) -> list[str]:
     """The SQL statements a flush runs, without the savepoint around them (the test's transaction holds
     the flush's own)."""
     with CaptureQueriesContext(connection) as queries:
-        bridge.flush()
+        bridge.status_writer.flush()
     return [q["sql"] for q in queries if not q["sql"].startswith(("SAVEPOINT", "RELEASE SAVEPOINT"))]
 
 
@@ -162,7 +161,7 @@ def test_a_robot_that_only_took_its_order_needs_no_step_and_the_flush_marks_the_
 
     assert not step_requested(robot)
     assert not Mission.objects.get(robot=robot.name).order_accepted  # written by the flush, not per state
-    bridge.flush()
+    bridge.status_writer.flush()
     assert Mission.objects.get(robot=robot.name).order_accepted
 
 
@@ -179,7 +178,7 @@ def test_a_robot_that_took_its_order_dropping_a_finished_instant_action_needs_no
     bridge.handle([state_message(robot, header_id=3, at=2.0, order_id=order_id, node_states=[2])])
 
     assert not step_requested(robot)
-    bridge.flush()
+    bridge.status_writer.flush()
     assert Mission.objects.get(robot=robot.name).order_accepted
 
 
@@ -200,7 +199,7 @@ def test_an_order_the_robot_took_from_elsewhere_is_not_marked_accepted(bridge: B
     running_order(bridge, robot)
 
     bridge.handle([state_message(robot, header_id=2, at=1.0, order_id="someone-else", node_states=[2])])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert not Mission.objects.get(robot=robot.name).order_accepted
 
@@ -262,7 +261,7 @@ def test_a_stale_state_does_not_overwrite_the_status_written_to_the_database(
     bridge.handle([state_message(robot, header_id=2, at=1.0, battery=50.0, pose=(3.0, 3.0, 0.0, "map"))])
 
     bridge.handle([state_message(robot, header_id=1, at=0.0, battery=90.0, pose=(0.0, 0.0, 0.0, "map"))])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     stored = _reload(robot)
     assert (stored.battery_level, stored.pose_x) == (50.0, 3.0)
@@ -293,7 +292,7 @@ def test_states_are_stored_and_robots_come_online_after_redis_lost_the_scripts_a
 def test_a_backlog_is_handled_a_batch_at_a_time_each_batch_requesting_its_steps_before_the_next_is_read(
     bridge: Bridge, make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(bridge_module, "BATCH_LIMIT", 2)
+    monkeypatch.setattr(tuning, "BATCH_LIMIT", 2)
     robots = [make_robot() for _ in range(3)]
     bridge.directory.reload()
     for robot in robots:
@@ -312,7 +311,7 @@ def test_a_backlog_is_handled_a_batch_at_a_time_each_batch_requesting_its_steps_
 def test_a_batch_takes_what_arrives_within_its_window_after_its_first_message(
     bridge: Bridge, make_robot: MakeRobot, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", 0.5)
+    monkeypatch.setattr(tuning, "BATCH_WINDOW_SECONDS", 0.5)
     first, second = make_robot(), make_robot()
     bridge.directory.reload()
     step_requested(first), step_requested(second)  # the creations'
@@ -343,8 +342,8 @@ def test_a_batch_waits_no_longer_than_its_window_and_not_once_full_or_once_its_f
     window: float,
     waited: float,
 ) -> None:
-    monkeypatch.setattr(bridge_module, "BATCH_LIMIT", limit)
-    monkeypatch.setattr(bridge_module, "BATCH_WINDOW_SECONDS", window)
+    monkeypatch.setattr(tuning, "BATCH_LIMIT", limit)
+    monkeypatch.setattr(tuning, "BATCH_WINDOW_SECONDS", window)
     robots = [make_robot(), make_robot()]
     bridge.directory.reload()
     for robot in robots:
@@ -373,7 +372,7 @@ def test_pose_and_battery_reach_the_database_only_on_flush(bridge: Bridge, robot
     )
     assert (_reload(robot).battery_level, _reload(robot).pose_x) == (0.0, 0.0)
 
-    bridge.flush()
+    bridge.status_writer.flush()
 
     stored = _reload(robot)
     assert (stored.battery_level, stored.pose_x, stored.pose_y, stored.pose_theta) == (42.5, 3.5, -1.25, 0.75)
@@ -398,9 +397,9 @@ def test_a_status_the_database_refuses_is_dropped_and_the_other_robots_are_writt
     bridge.handle([state_message(refused), state_message(healthy, pose=(4.0, 5.0, 1.0, "map"))])
     # The bridge drops messages holding a NUL (test_hostile.py), but whatever PostgreSQL refuses is dropped
     # here too: jsonb cannot hold a NUL.
-    bridge._pending(refused.name)["errors"] = {"blocked": {"description": "stuck\x00here"}}
+    bridge.status_writer.pending(refused.name)["errors"] = {"blocked": {"description": "stuck\x00here"}}
 
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert _reload(healthy).pose_x == 4.0
     assert (_reload(refused).pose_x, _reload(refused).errors) == (0.0, {})
@@ -414,7 +413,7 @@ def test_user_info_becomes_the_robots_info_messages(bridge: Bridge, robot: Robot
     message["information"] = [info.model_dump(mode="json", by_alias=True, exclude_none=True)]
 
     bridge.handle([(topic_name, orjson.dumps(message))])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert _reload(robot).info_messages == {"shelf": 4}
 
@@ -435,18 +434,18 @@ def test_a_flush_with_nothing_changed_writes_nothing(
     bridge: Bridge, robot: Robot, django_assert_num_queries
 ) -> None:
     bridge.handle([state_message(robot, header_id=1, battery=30.0)])
-    bridge.flush()
+    bridge.status_writer.flush()
     bridge.handle([state_message(robot, header_id=2, at=1.0, battery=30.0)])
 
     with django_assert_num_queries(0):
-        bridge.flush()
+        bridge.status_writer.flush()
 
 
 def test_a_flush_writes_only_the_robots_that_changed(bridge: Bridge, make_robot: MakeRobot) -> None:
     moving, parked = make_robot(), make_robot()
     bridge.directory.reload()
     bridge.handle([state_message(moving, header_id=1), state_message(parked, header_id=1)])
-    bridge.flush()
+    bridge.status_writer.flush()
     Robot.objects.filter(name=parked.name).update(battery_level=-1.0)  # would be overwritten if written
 
     bridge.handle(
@@ -462,7 +461,7 @@ def test_a_flush_writes_only_the_robots_that_changed(bridge: Bridge, make_robot:
 
 def _age(bridge: Bridge, seconds: float) -> None:
     """As if `seconds` had passed since each robot was last written and heard."""
-    for status in bridge.status.values():
+    for status in bridge.status_writer.statuses.values():
         status.written_at -= seconds
         status.heard_at -= seconds
 
@@ -473,16 +472,16 @@ def test_an_unchanged_status_rewrites_only_a_newer_last_state_time_once_its_peri
     heard, silent = make_robot(), make_robot()
     bridge.directory.reload()
     bridge.handle([state_message(heard, header_id=1), state_message(silent, header_id=1)])
-    bridge.flush()
+    bridge.status_writer.flush()
     written = _reload(heard).last_state_at
     Robot.objects.filter(name=silent.name).update(last_state_at=None)  # would be set again if rewritten
     bridge.handle([state_message(heard, header_id=2, at=1.0)])
 
-    bridge.flush()
+    bridge.status_writer.flush()
     assert _reload(heard).last_state_at == written  # its period is not up
 
-    _age(bridge, bridge_module.LAST_STATE_AT_PERIOD)
-    bridge.flush()
+    _age(bridge, tuning.LAST_STATE_AT_PERIOD)
+    bridge.status_writer.flush()
     assert _reload(heard).last_state_at > written
     assert _reload(silent).last_state_at is None  # nothing newer to write
 
@@ -494,12 +493,12 @@ def test_robots_heard_together_rewrite_their_last_state_times_at_different_momen
     robots = [make_robot() for _ in range(20)]
     bridge.directory.reload()
     bridge.handle([state_message(r, header_id=1) for r in robots])
-    bridge.flush()
+    bridge.status_writer.flush()
     Robot.objects.filter(name__in=[r.name for r in robots]).update(last_state_at=None)
     bridge.handle([state_message(r, header_id=2, at=1.0) for r in robots])
 
-    _age(bridge, 0.75 * bridge_module.LAST_STATE_AT_PERIOD)
-    bridge.flush()
+    _age(bridge, 0.75 * tuning.LAST_STATE_AT_PERIOD)
+    bridge.status_writer.flush()
 
     written = Robot.objects.filter(name__in=[r.name for r in robots], last_state_at__isnull=False).count()
     assert 0 < written < len(robots)
@@ -509,25 +508,25 @@ def test_a_robot_silent_for_long_is_forgotten_and_written_in_full_when_heard_aga
     bridge: Bridge, robot: Robot
 ) -> None:
     bridge.handle([state_message(robot, header_id=1, battery=40.0)])
-    bridge.flush()
-    _age(bridge, bridge_module.FORGET_STATUS_SECONDS)
+    bridge.status_writer.flush()
+    _age(bridge, tuning.FORGET_STATUS_SECONDS)
 
-    bridge.flush()
-    assert robot.name not in bridge.status
+    bridge.status_writer.flush()
+    assert robot.name not in bridge.status_writer.statuses
 
     Robot.objects.filter(name=robot.name).update(battery_level=-1.0)
     bridge.handle([state_message(robot, header_id=2, at=1.0, battery=40.0)])
-    bridge.flush()
+    bridge.status_writer.flush()
     assert _reload(robot).battery_level == 40.0
 
 
 def test_visualization_updates_the_pose_without_a_step(bridge: Bridge, robot: Robot) -> None:
     bridge.handle([state_message(robot)])
-    bridge.flush()
+    bridge.status_writer.flush()
     step_requested(robot)
 
     bridge.handle([visualization_message(robot, 6.0, 7.0, -0.5, at=0.5)])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     stored = _reload(robot)
     assert (stored.pose_x, stored.pose_y, stored.pose_theta) == (6.0, 7.0, -0.5)
@@ -538,11 +537,11 @@ def test_a_visualization_before_any_state_keeps_the_last_state_time(bridge: Brid
     before_restart = Bridge()
     before_restart.directory.reload()
     before_restart.handle([state_message(robot)])
-    before_restart.flush()
+    before_restart.status_writer.flush()
     assert _reload(robot).last_state_at is not None
 
     bridge.handle([visualization_message(robot, 6.0, 7.0, -0.5)])  # e.g. after a bridge restart
-    bridge.flush()
+    bridge.status_writer.flush()
 
     stored = _reload(robot)
     assert (stored.pose_x, stored.last_state_at is not None) == (6.0, True)
@@ -631,7 +630,9 @@ def test_a_factsheet_is_stored_whole_with_class_and_top_speed(
 # --- heartbeats ------------------------------------------------------------------------------------------
 
 
-def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make_robot: MakeRobot) -> None:
+def test_robot_check_heartbeats_marks_silent_robots_offline(
+    bridge: Bridge, make_robot: MakeRobot, django_capture_on_commit_callbacks: Any
+) -> None:
     silent, talking, unheard = (make_robot(heartbeat_timeout=5.0) for _ in range(3))
     bridge.directory.reload()
     now = time.time()
@@ -641,7 +642,8 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
     for robot in (silent, talking, unheard):
         step_requested(robot)
 
-    offline = robot_check_heartbeats(now=now)
+    with django_capture_on_commit_callbacks(execute=True):  # its steps are asked for once its writes commit
+        offline = robot_check_heartbeats(now=now)
 
     assert sorted(offline) == sorted([silent.name, unheard.name])
     assert [_reload(r).online for r in (silent, talking, unheard)] == [False, True, False]
@@ -650,7 +652,7 @@ def test_robot_check_heartbeats_marks_silent_robots_offline(bridge: Bridge, make
 
 
 def test_robot_check_heartbeats_marks_a_robot_heard_but_stored_offline_online(
-    bridge: Bridge, make_robot: MakeRobot
+    bridge: Bridge, make_robot: MakeRobot, django_capture_on_commit_callbacks: Any
 ) -> None:
     """A bridge killed between marking a robot online in Redis and in PostgreSQL: the robot publishes,
     Redis knows it, its row says offline. The heartbeat check puts that right, whatever the set holds."""
@@ -663,7 +665,8 @@ def test_robot_check_heartbeats_marks_a_robot_heard_but_stored_offline_online(
     for robot in (in_set, not_in_set):
         step_requested(robot)
 
-    changed = robot_check_heartbeats(now=time.time())
+    with django_capture_on_commit_callbacks(execute=True):
+        changed = robot_check_heartbeats(now=time.time())
 
     assert sorted(changed) == sorted([in_set.name, not_in_set.name])
     assert [_reload(r).online for r in (in_set, not_in_set)] == [True, True]
@@ -699,11 +702,11 @@ def test_a_robot_a_step_holds_is_skipped_by_the_flush_and_written_by_the_next(
 
     with held("SELECT 1 FROM robots_robot WHERE name = %s FOR UPDATE", [busy.name]):
         started = time.monotonic()
-        bridge.flush()
+        bridge.status_writer.flush()
         assert time.monotonic() - started < 1
     assert (_reload(busy).battery_level, _reload(free).battery_level) == (0.0, 22.0)
 
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert _reload(busy).battery_level == 21.0
 
@@ -715,10 +718,10 @@ def test_a_deleted_robot_is_not_written_again_and_again(bridge: Bridge, make_rob
     bridge.handle([state_message(gone, battery=21.0)])
     Robot.objects.filter(name=gone.name).delete()
 
-    bridge.flush()
+    bridge.status_writer.flush()
 
     with CaptureQueriesContext(connection) as queries:
-        bridge.flush()
+        bridge.status_writer.flush()
     assert len(queries) == 0
 
 
@@ -731,7 +734,7 @@ def test_an_order_acceptance_of_a_mission_a_step_holds_is_dropped_without_waitin
 
     with held("SELECT 1 FROM missions_mission WHERE robot = %s FOR UPDATE", [robot.name]):
         started = time.monotonic()
-        bridge.flush()
+        bridge.status_writer.flush()
         assert time.monotonic() - started < 1
 
     assert not Mission.objects.get(robot=robot.name).order_accepted
@@ -742,11 +745,11 @@ def test_a_flush_waiting_for_the_database_does_not_hold_up_the_states_that_arriv
     bridge: Bridge, robot: Robot, settings: Any
 ) -> None:
     settings.BRIDGE_STATUS_FLUSH_SECONDS = 0  # a flush is due at every iteration
-    bridge.start_status_writer()
+    bridge.status_writer.start()
     try:
         _handle_while_a_flush_waits(bridge, robot)
     finally:
-        bridge.stop_status_writer()
+        bridge.status_writer.stop()
 
 
 def _handle_while_a_flush_waits(bridge: Bridge, robot: Robot) -> None:
@@ -763,7 +766,7 @@ def _handle_while_a_flush_waits(bridge: Bridge, robot: Robot) -> None:
         bridge.run_once(timeout=0)
 
         assert livestate.latest_state(robot.name).payload == later[1]
-        assert not bridge._written.is_set()
+        assert not bridge.status_writer._written.is_set()
     assert _wait_written(bridge)
     assert _reload(robot).battery_level == 31.0
     bridge.run_once(timeout=0)  # the next flush, with what arrived meanwhile
@@ -772,4 +775,4 @@ def _handle_while_a_flush_waits(bridge: Bridge, robot: Robot) -> None:
 
 
 def _wait_written(bridge: Bridge) -> bool:
-    return bridge._written.wait(timeout=10)
+    return bridge.status_writer._written.wait(timeout=10)

@@ -23,9 +23,9 @@ from vda5050.codec import parse
 from vda5050.errors import ProtocolError
 from vda5050.models import ConnectionState
 from vda5050.topics import Topic
-from workers import bridge as bridge_module
 from workers import metrics
-from workers.bridge import Bridge, Drop
+from workers.bridge.gate import Drop, Ignored
+from workers.bridge.loop import Bridge
 
 MakeRobot = Callable[..., Robot]
 CASES = corpus("victim", "stranger")  # ids and reasons only: the tests build their own with real serials
@@ -70,7 +70,7 @@ def victim(bridge: Bridge, make_robot: MakeRobot) -> Robot:
     robot = make_robot("victim")
     bridge.directory.reload()
     bridge.handle(history(robot.serial_number))
-    bridge.flush()
+    bridge.status_writer.flush()
     step_requested(robot)
     return robot
 
@@ -108,7 +108,7 @@ def test_a_hostile_message_is_counted_changes_nothing_and_the_rest_of_its_batch_
     good = state_message(bystander, battery=33.0)
 
     bridge.handle([(case.topic, case.payload), good])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert counted(counters_before) == {field(case.counter, case.label, case.reason): 1}
     assert stored(victim) == before
@@ -121,7 +121,7 @@ def test_a_hostile_message_is_counted_changes_nothing_and_the_rest_of_its_batch_
 def test_the_corpus_has_every_class_on_every_topic() -> None:
     by_topic = {kind: {(c.counter, c.reason) for c in CASES if c.label == kind} for kind in SUBSCRIBED}
     every = {(metrics.MESSAGES_INVALID, reason) for reason in Drop if reason != Drop.REFUSED} | {
-        (metrics.MESSAGES_IGNORED, reason) for reason in bridge_module.Ignored
+        (metrics.MESSAGES_IGNORED, reason) for reason in Ignored
     }
     assert by_topic == dict.fromkeys(SUBSCRIBED, every)
 
@@ -180,7 +180,7 @@ def test_a_user_info_whose_json_cannot_be_stored_is_kept_as_text(
     message["information"] = [{"infoType": "user_info", "infoDescription": text, "infoLevel": "INFO"}]
 
     bridge.handle([(topic_name, orjson.dumps(message)), state_message(bystander, battery=33.0)])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert Robot.objects.get(name=victim.name).info_messages == text
     assert Robot.objects.get(name=bystander.name).battery_level == 33.0
@@ -238,7 +238,7 @@ def robots(bridge: Bridge, make_robot: MakeRobot) -> tuple[Robot, Robot, dict[st
     bridge.directory.reload()
     good = history(victim.serial_number)
     bridge.handle(good)
-    bridge.flush()
+    bridge.status_writer.flush()
     return victim, bystander, {name.rsplit("/", 1)[-1]: payload for name, payload in good}
 
 
@@ -260,7 +260,7 @@ def test_whatever_arrives_is_either_a_valid_message_or_counted_and_changes_nothi
     before, counters_before = stored(victim), counters()
 
     bridge.handle([(topic(victim, kind), payload), state])
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert livestate.latest_state(bystander.name).payload == state[1]
     if not _readable(kind, payload, victim):

@@ -21,7 +21,7 @@ from tests.factories import TEST_ACTOR
 from vda5050.codec import encode, header_for
 from vda5050.models import ActionStatus, Map, MapStatus
 from vda5050.topics import RobotAddress
-from workers.bridge import Bridge
+from workers.bridge.loop import Bridge
 
 MakeRobot = Callable[..., Robot]
 HALL = Map(map_id="hall", map_version="2", map_description="hall, 2nd floor", map_status=MapStatus.ENABLED)
@@ -42,7 +42,7 @@ def maps_state(robot: Robot, *maps: Map, header_id: int = 1, action_states=()) -
 
 def flush_statements(bridge: Bridge) -> list[str]:
     with CaptureQueriesContext(connection) as queries:
-        bridge.flush()
+        bridge.status_writer.flush()
     return [q["sql"] for q in queries if not q["sql"].startswith(("SAVEPOINT", "RELEASE SAVEPOINT"))]
 
 
@@ -56,7 +56,7 @@ def test_reported_maps_reach_the_row_only_on_flush_and_unchanged_maps_are_not_re
     bridge.handle([maps_state(robot, HALL, YARD)])
     assert Robot.objects.get(name=robot.name).maps == []
 
-    bridge.flush()
+    bridge.status_writer.flush()
 
     assert Robot.objects.get(name=robot.name).maps == [
         {"map_id": "hall", "map_version": "2", "map_status": "ENABLED", "map_description": "hall, 2nd floor"},

@@ -34,7 +34,7 @@ from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
 from vda5050.orders import stitch
 from vda5050.topics import Topic
-from workers.stepper import run_step
+from workers.step_runs import step_and_publish
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -197,7 +197,7 @@ def test_what_a_step_killed_before_publishing_decided_goes_out_first_with_the_ne
 ) -> None:
     """Its process died between COMMIT and publish: its headerIds must not be left out on the wire."""
     InstantAction.objects.filter(robot=robot).update(status=None, sent_at=None)
-    run_step(robot.name)  # the robot's factsheet request goes out: Redis marks what the robot was sent
+    step_and_publish(robot.name)  # the robot's factsheet request goes out: Redis marks what it was sent
     create("m1", robot)
     killed = step(robot)  # committed, never published
     put_state(robot, header_id=2, arrived_at=(NOW + timedelta(seconds=30)).timestamp())
@@ -213,7 +213,7 @@ def test_once_redis_lost_the_marks_only_the_newest_message_on_each_topic_is_sent
     """An older one could hand the robot an order its mission has moved past (the fault suite saw a first
     leaf's order arrive after the second's); the newest may be the one a killed step left unsent."""
     create("m1", robot)
-    run_step(robot.name)  # publishes, and marks what it published; now, not at NOW
+    step_and_publish(robot.name)  # publishes, and marks what it published; now, not at NOW
     sent_at = timezone.now()
 
     def resend(after: float) -> StepOutcome:

@@ -15,7 +15,8 @@ from robots.models import Robot
 from tests.bridge.messages import steps_queued
 from tests.bridge.test_robot_step import put_state
 from tests.factories import TEST_ACTOR
-from workers import metrics, stepper, steps
+from workers import long_lived, metrics, step_runs, tuning
+from workers.step_requests import queue_steps
 from workers.tasks import step_robots
 
 MakeRobot = Callable[..., Robot]
@@ -48,7 +49,7 @@ def test_a_step_task_starts_each_robots_mission_and_sends_its_order(make_robot: 
 
 def test_a_step_clears_its_robots_marker_so_that_a_later_change_queues_another(make_robot: MakeRobot) -> None:
     robot, _ = _robot_with_mission(make_robot)
-    steps.request_steps([robot.name])
+    queue_steps([robot.name])
     assert steps_queued([robot]) == {robot.name}
 
     step_robots.apply(([robot.name],))
@@ -72,7 +73,7 @@ def test_robots_whose_step_failed_are_retried_alone_until_their_steps_run(
             raise RuntimeError("database went away")
         return robot_step(name=name)
 
-    monkeypatch.setattr(stepper, "robot_step", step_while_the_database_is_away)
+    monkeypatch.setattr(step_runs, "robot_step", step_while_the_database_is_away)
 
     step_robots.apply(([failing.name, healthy.name],))  # eager: a retry runs at once, without its countdown
 
@@ -85,21 +86,21 @@ def test_robots_whose_step_failed_are_retried_alone_until_their_steps_run(
 
 
 def test_retry_delays_double_up_to_a_bound() -> None:
-    delays = [stepper.retry_delay(failures) for failures in range(1, 10)]
+    delays = [long_lived.retry_delay(failures) for failures in range(1, 10)]
 
     assert delays[:3] == [
-        stepper.RETRY_FIRST_SECONDS,
-        2 * stepper.RETRY_FIRST_SECONDS,
-        4 * stepper.RETRY_FIRST_SECONDS,
+        tuning.RETRY_FIRST_SECONDS,
+        2 * tuning.RETRY_FIRST_SECONDS,
+        4 * tuning.RETRY_FIRST_SECONDS,
     ]
-    assert delays[-1] == stepper.RETRY_MAX_SECONDS
+    assert delays[-1] == tuning.RETRY_MAX_SECONDS
     assert delays == sorted(delays)
 
 
 def test_start_up_work_is_tried_again_with_backoff_until_it_runs(monkeypatch: pytest.MonkeyPatch) -> None:
     """What the bridge and the step workers do once at start (load the robots, step every robot with work)
     waits for PostgreSQL and Redis instead of ending the process."""
-    monkeypatch.setattr(stepper, "RETRY_FIRST_SECONDS", 0.01)
+    monkeypatch.setattr(tuning, "RETRY_FIRST_SECONDS", 0.01)
     tries = []
 
     def load_while_the_database_is_away() -> None:
@@ -107,7 +108,7 @@ def test_start_up_work_is_tried_again_with_backoff_until_it_runs(monkeypatch: py
         if len(tries) < 3:
             raise RuntimeError("database went away")
 
-    stepper.keep_trying("loading the robots", load_while_the_database_is_away)
+    long_lived.keep_trying("loading the robots", load_while_the_database_is_away)
 
     assert len(tries) == 3
     assert tries[1] - tries[0] >= 0.01 and tries[2] - tries[1] >= 0.02  # waited, then twice as long

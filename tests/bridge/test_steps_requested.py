@@ -1,5 +1,5 @@
-"""Requested steps (`workers.steps`): Celery tasks on the steps queue, at most one queued per robot; against
-the real Redis (the Celery broker)."""
+"""Requested steps (`workers.step_requests`): Celery tasks on the steps queue, at most one queued per robot;
+against the real Redis (the Celery broker)."""
 
 import time
 import uuid
@@ -13,7 +13,7 @@ from django.conf import settings
 from robots import livestate
 from tests.private_redis import PrivateRedis, live_state_in
 from tests.waiting import wait_for
-from workers import steps
+from workers import step_requests
 
 
 @pytest.fixture
@@ -44,14 +44,14 @@ def step_tasks(names: list[str]) -> list[list[str]]:
 
 
 def test_steps_go_to_the_steps_queue_a_task_per_so_many_robots(names: list[str]) -> None:
-    steps.request_steps(names, at=1234.5)
+    step_requests.queue_steps(names, at=1234.5)
 
     size = settings.STEP_TASK_ROBOTS
     assert step_tasks(names) == [names[start : start + size] for start in range(0, len(names), size)]
 
 
 def test_a_step_task_shows_celerys_tools_its_robots(names: list[str]) -> None:
-    steps.request_steps(names[:2], at=1234.5)
+    step_requests.queue_steps(names[:2], at=1234.5)
 
     queued = livestate.client().lrange(settings.STEP_QUEUE, 0, -1)
     (message,) = [message for message in queued if _robots_of(message) == names[:2]]
@@ -62,12 +62,12 @@ def test_a_step_task_shows_celerys_tools_its_robots(names: list[str]) -> None:
 def test_a_robot_whose_step_is_queued_is_not_queued_again_until_its_step_reads_its_state(
     names: list[str],
 ) -> None:
-    steps.request_steps(names[:1])
-    steps.request_steps(names[:2])
+    step_requests.queue_steps(names[:1])
+    step_requests.queue_steps(names[:2])
     assert step_tasks(names) == [names[:1], names[1:2]]
 
     livestate.state_for_step(names[0])  # what its step reads first
-    steps.request_steps(names[:2])
+    step_requests.queue_steps(names[:2])
 
     assert step_tasks(names) == [names[:1], names[1:2], names[:1]]
 
@@ -75,12 +75,12 @@ def test_a_robot_whose_step_is_queued_is_not_queued_again_until_its_step_reads_i
 def test_requests_made_while_the_sender_is_busy_go_out_together_in_tasks_of_several_robots(
     names: list[str],
 ) -> None:
-    sender = steps._StepSender()
+    sender = step_requests._StepSender()
     with sender._changed:  # held, as while the sender sends: it cannot take the requests meanwhile
         for name in names[:10]:
             sender.add([name], at=time.time())
 
-    assert sender.flush(timeout=10)
+    assert sender.wait_until_queued(timeout=10)
     assert step_tasks(names) == [names[:8], names[8:10]]
 
 
@@ -89,13 +89,13 @@ def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
 ) -> None:
     private = PrivateRedis(tmp_path)
     with live_state_in(private.url):
-        steps.request_steps_soon(names[:1])  # nothing listens on the port yet: no error either
+        step_requests.queue_steps_soon(names[:1])  # nothing listens on the port yet: no error either
         wait_for(lambda: "not queued" in caplog.text, timeout=10)
 
         private.start()
         try:
             wait_for(lambda: private.client().exists(livestate.step_marker_key(names[0])), timeout=10)
-            assert steps.flush(timeout=10)  # its task is sent after its marker
+            assert step_requests.wait_until_queued(timeout=10)  # its task is sent after its marker
         finally:
             private.kill()
 

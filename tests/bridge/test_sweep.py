@@ -16,7 +16,7 @@ from missions.tuning import STALLED_MISSION_SECONDS
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
 from vda5050.models import OrderContent
-from workers.bridge import Bridge
+from workers.bridge.loop import Bridge
 
 END = (5.0, 6.0, 0.0, "map")  # where running_order's route ends
 RESEND_DUE = timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS + 1)

@@ -14,7 +14,7 @@ from tests.vda5050.samples import full_factsheet
 from vda5050.codec import encode, header_for
 from vda5050.models import Content
 from vda5050.topics import RobotAddress, Topic, topic_for
-from workers.bridge import Bridge
+from workers.bridge.loop import Bridge
 
 pytestmark = pytest.mark.django_db(transaction=True)  # autocommit, as the bridge runs
 

@@ -19,7 +19,7 @@ from tests.e2e.conftest import Stack
 from tests.e2e.helpers import create_robot
 from tests.waiting import wait_for
 from workers import metrics
-from workers.bridge import STATUS_COLUMNS
+from workers.bridge.status_writer import STATUS_COLUMNS
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 

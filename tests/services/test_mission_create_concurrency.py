@@ -90,10 +90,10 @@ def wakes(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str]]:
     """(robot, thread) per wake-up the mission services asked for: the creation's thread or the step's."""
     calls: list[tuple[str, str]] = []
 
-    def wake_robot(name: str) -> None:
-        calls.append((name, threading.current_thread().name))
+    def request_steps(names: list[str]) -> None:
+        calls.extend((name, threading.current_thread().name) for name in names)
 
-    monkeypatch.setattr(missions.services, "wake_robot", wake_robot)
+    monkeypatch.setattr(missions.services, "request_steps", request_steps)
     return calls
 
 

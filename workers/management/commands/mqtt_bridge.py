@@ -3,7 +3,7 @@ from typing import Any
 from django.conf import settings
 from django.core.management.base import BaseCommand, CommandParser
 
-from workers.bridge import Bridge
+from workers.bridge.loop import Bridge
 
 
 class Command(BaseCommand):

@@ -1,7 +1,9 @@
-"""Requesting dispatch steps: Celery tasks on the `steps` queue, at most one queued step per robot.
+"""Step requests turned into Celery step tasks on the `steps` queue, at most one queued step per robot.
 
-Whoever asks (the bridge for a state that changed what the engine reads, the API for a change of a
-mission or robot, beat for time that passed) goes through `request_steps`. A robot whose step is already
+`queue_steps` queues them now, in the caller's thread (the bridge for a state that changed what the engine
+reads, beat for time that passed); `queue_steps_soon` hands them to this process's sender thread, and is
+what the workers app installs into the port the services ask through (`kit.wake.request_steps`: the API
+for a change of a mission or robot, the heartbeat check). A robot whose step is already
 queued gets no second one; its marker is cleared when its step reads the robot's state
 (`robots.livestate.state_for_step`), so a change that arrives during the step queues one more. A task
 carries several robots when a bridge batch or a sweep asks for several: Celery's cost per task is of the
@@ -22,17 +24,14 @@ from celery import current_app as app  # the roof's (fleet.celery), loaded with 
 from django.conf import settings
 
 from robots import livestate
+from workers import tuning
 
 logger = logging.getLogger(__name__)
 
 STEP_TASK = "fleet.step_robots"  # workers.tasks.step_robots, sent by name: the tasks import this module
-# A queued-step marker expires on its own, so a step lost with a killed worker cannot block later ones.
-STEP_MARKER_SECONDS = 10
-# A step request that could not be queued (Redis or the broker away) is tried again this often.
-UNQUEUED_RETRY_SECONDS = 1.0
 
 
-def request_steps(names: Iterable[str], *, at: float | None = None) -> None:
+def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
     """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s).
 
     One Redis round trip marks them, one Celery task per `STEP_TASK_ROBOTS` of them carries them."""
@@ -41,7 +40,10 @@ def request_steps(names: Iterable[str], *, at: float | None = None) -> None:
         return
     at = time.time() if at is None else at
     marked = livestate.round_trip(
-        [("SET", livestate.step_marker_key(name), 1, "NX", "EX", STEP_MARKER_SECONDS) for name in names]
+        [
+            ("SET", livestate.step_marker_key(name), 1, "NX", "EX", tuning.STEP_MARKER_SECONDS)
+            for name in names
+        ]
     )
     for reply in marked:
         if isinstance(reply, Exception):
@@ -86,8 +88,8 @@ def _thread_producer() -> kombu.Producer:
     return owned[1]
 
 
-def request_steps_soon(names: Iterable[str]) -> None:
-    """`request_steps` from this process's sender thread, which the caller does not wait for.
+def queue_steps_soon(names: Iterable[str]) -> None:
+    """`queue_steps` from this process's sender thread, which the caller does not wait for.
 
     For callers whose change is committed already (an API request, beat's heartbeat check): the change
     stands whether or not its step can be queued now, so the caller must not fail for it. Requests made
@@ -99,7 +101,7 @@ def request_steps_soon(names: Iterable[str]) -> None:
 
 class _StepSender:
     """Sends the requested steps from a thread of its own; while Redis or the broker is away it keeps
-    them and tries again every `UNQUEUED_RETRY_SECONDS` until they are queued."""
+    them and tries again every `tuning.UNQUEUED_RETRY_SECONDS` until they are queued."""
 
     def __init__(self) -> None:
         self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
@@ -119,7 +121,7 @@ class _StepSender:
                 self._thread.start()
             self._changed.notify_all()
 
-    def flush(self, timeout: float) -> bool:
+    def wait_until_queued(self, timeout: float) -> bool:
         """Wait until every request made so far is queued (at exit); False if `timeout` s passed first."""
         with self._changed:
             return self._changed.wait_for(lambda: not self._names and not self._sending, timeout)
@@ -132,15 +134,15 @@ class _StepSender:
                 names, at = list(self._names), self._at or time.time()
                 self._names, self._at, self._sending = {}, None, True
             try:
-                request_steps(names, at=at)
+                queue_steps(names, at=at)
             except (redis.RedisError, kombu.exceptions.OperationalError, OSError) as error:
                 if not failing:
                     logger.warning(
-                        "steps not queued (%s); trying again every %s s", error, UNQUEUED_RETRY_SECONDS
+                        "steps not queued (%s); trying again every %s s", error, tuning.UNQUEUED_RETRY_SECONDS
                     )
                 failing = True
                 self.add(names, at=at)
-                time.sleep(UNQUEUED_RETRY_SECONDS)
+                time.sleep(tuning.UNQUEUED_RETRY_SECONDS)
             else:
                 if failing:
                     logger.info("steps queued again after the outage")
@@ -154,10 +156,10 @@ class _StepSender:
 _sender = _StepSender()
 
 
-def flush(timeout: float = 2.0) -> bool:
-    """Wait until the steps requested so far with `request_steps_soon` are queued; False if `timeout` s
+def wait_until_queued(timeout: float = 2.0) -> bool:
+    """Wait until the steps requested so far with `queue_steps_soon` are queued; False if `timeout` s
     passed first (Redis or the broker away). Run at exit, so that a stopping API process loses none."""
-    return _sender.flush(timeout)
+    return _sender.wait_until_queued(timeout)
 
 
-atexit.register(flush)
+atexit.register(wait_until_queued)
