@@ -148,7 +148,17 @@ class MissionAdmin(admin.ModelAdmin):
         ("Mission tree", {"fields": ("tree_view",)}),
         (
             "Current VDA 5050 order",
-            {"classes": ("collapse",), "fields": ("order", "order_sent_at", "order_accepted", "attempts")},
+            {
+                "classes": ("collapse",),
+                "fields": (
+                    "order",
+                    "order_sent_at",
+                    "order_accepted",
+                    "attempts",
+                    "progress",
+                    "progress_seen_at",
+                ),
+            },
         ),
         (
             "Raw",

@@ -86,7 +86,8 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
 
 
 def robots_stalled(*, now: datetime | None = None) -> list[str]:
-    """Robots idle at the end of the order their running mission sent, the mission not moved on since.
+    """Robots idle at the end of the order their running mission sent, the mission not moved on since; and
+    robots whose order may have stalled (`_orders_maybe_stalled`).
 
     The last line of defence: the state that ended the order asked for a step, and a step that failed is
     retried; but a process killed with that retry pending, or a lost request, leaves nothing else to step
@@ -101,13 +102,25 @@ def robots_stalled(*, now: datetime | None = None) -> list[str]:
         ).values_list("robot", KT("order__orderId"), KT("order__orderUpdateId"))
     )
     held = livestate.orders_held([robot for robot, *_ in rows])
-    return sorted(
-        {
-            robot
-            for robot, order_id, update_id in rows
-            if update_id is not None
-            and order_finished(held[robot], order_id=order_id, update_id=int(update_id))
-        }
+    finished = {
+        robot
+        for robot, order_id, update_id in rows
+        if update_id is not None and order_finished(held[robot], order_id=order_id, update_id=int(update_id))
+    }
+    return sorted(finished | set(_orders_maybe_stalled(now)))
+
+
+def _orders_maybe_stalled(now: datetime) -> list[str]:
+    """Robots whose mission's order has shown no progress for FLEET_ORDER_STALL_SECONDS (its stall clock,
+    `dispatch.faults.watch_progress`): a step judges whether the order stalled, as a robot standing still
+    sends no state that would wake one."""
+    if not settings.DISPATCH_ORDER_STALL_SECONDS:
+        return []
+    stalled_since = now - timedelta(seconds=settings.DISPATCH_ORDER_STALL_SECONDS)
+    return list(
+        Mission.objects.filter(state=MissionState.RUNNING, progress_seen_at__lte=stalled_since)
+        .values_list("robot", flat=True)
+        .distinct()
     )
 
 
