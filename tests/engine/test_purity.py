@@ -21,6 +21,8 @@ print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "red
         "dispatch.step",
         "dispatch.records",
         "dispatch.held",
+        "dispatch.sent",
+        "dispatch.faults",
         "vda5050",
         "vda5050.codec",
         "vda5050.models",
