@@ -148,18 +148,9 @@ class MissionAdmin(admin.ModelAdmin):
         ("Mission tree", {"fields": ("tree_view",)}),
         (
             "Current VDA 5050 order",
-            {
-                "classes": ("collapse",),
-                "fields": (
-                    "order",
-                    "order_sent_at",
-                    "order_accepted",
-                    "attempts",
-                    "progress",
-                    "progress_seen_at",
-                ),
-            },
+            {"classes": ("collapse",), "fields": ("order", "order_sent_at", "order_accepted", "attempts")},
         ),
+        ("Progress on the order", {"classes": ("collapse",), "fields": ("progress", "progress_seen_at")}),
         (
             "Raw",
             {
