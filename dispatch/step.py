@@ -435,6 +435,7 @@ def _take_over(
     may not have done it: the tree decides what follows); a route goes on with a new order of the
     waypoints the robot had not reached, from where it stands, once it can take one. The update sent ahead
     is dropped: the next leaf gets an order of its own."""
+    mission.progress_seen_at = None  # no stall clock: the robot's own states wake the steps until then
     if faults.order_ended(mission, sent):
         cancel = _order_cancel(result, mission)
         if cancel is not None and cancel.status not in FINAL:
