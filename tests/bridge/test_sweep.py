@@ -175,3 +175,22 @@ def test_a_robot_with_the_order_update_rule_is_sent_no_route_ahead(bridge: Bridg
     orders = [m.content for m in robot_step(name=robot.name).messages if isinstance(m.content, OrderContent)]
 
     assert [order.order_update_id for order in orders] == [0]
+
+
+def test_a_robot_that_no_longer_holds_its_taken_order_is_stepped_once_the_mission_stands_still(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """A restarted robot whose first states, alike, came too soon after the order to say it lost it: none of
+    them wakes a step, beat's check does."""
+    order_id = running_order(bridge, robot)
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])],
+        received_at=after_the_order(),
+    )
+    robot_step(name=robot.name)
+    bridge.handle([state_message(robot, header_id=0, at=2.0)], received_at=after_the_order() + 1)
+
+    assert robot.name in robots_stalled(now=timezone.now() + STALLED)
+    outcome = robot_step(name=robot.name, now=timezone.now() + STALLED)
+    resumed = [m.content.order_id for m in outcome.messages if isinstance(m.content, OrderContent)]
+    assert resumed == [order_id.replace("-r0", "-r1")]
