@@ -22,6 +22,9 @@ class DispatchSettings:
     order_resend: timedelta
     instant_action_resend: timedelta
     start_deviation_xy: float
+    # A robot that holds its order and shows no progress on it for this long has it canceled and the rest
+    # sent anew (`dispatch.faults`); zero turns the check off.
+    order_stall: timedelta = timedelta(0)
 
 
 @dataclass(frozen=True)
@@ -34,6 +37,7 @@ class RobotView:
     switch_teleop: bool = False  # teleop asked for through the API (not by a pause_order action)
     instant_actions_key: str = ACTIONS_KEY
     instant_actions_key_by_operator: bool = False  # then no compatibility rule changes it
+    routes_ahead: bool = True  # False once compat.Rule.ORDER_UPDATE_NOT_EXECUTED applied to the robot
 
 
 @dataclass
@@ -60,6 +64,10 @@ class MissionRecord:
     order_sent_at: datetime | None
     order_accepted: bool
     attempts: dict[str, int]
+    # The robot's progress on the order as a step last saw it change (`dispatch.faults.progress_mark`),
+    # and when: the stall clock, and how far a route got when the robot lost its order.
+    progress: dict[str, Any] | None = None
+    progress_seen_at: datetime | None = None
 
     @property
     def done(self) -> bool:

@@ -11,13 +11,13 @@ No Django, paho or Redis imports: states, kinds, categories and lifecycles are t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from datetime import datetime, timedelta
-from typing import Any
 
-from dispatch import engine
+from dispatch import engine, faults
 from dispatch.held import FINAL, arrived_after_order
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
+from dispatch.sent import SentOrder, build_order, order_update_for, sent_order, stored
 from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
 from vda5050 import compat, maps, orders
 from vda5050 import state as vda_state
@@ -26,7 +26,6 @@ from vda5050.models import (
     ActionStatus,
     ActionType,
     Error,
-    Node,
     OrderContent,
     State,
 )
@@ -37,6 +36,7 @@ ORDER_KINDS = frozenset({NodeKind.ROUTE, NodeKind.MOVE, NodeKind.ACTION})
 TIMED_OUT = "Mission timed out"
 DEADLINE_PASSED = "Mission deadline passed"
 ACTION_FAILURE = "Action failure"
+NO_POSITION = "Robot does not report its position"
 
 
 
@@ -160,15 +160,24 @@ def _pending_action(result: StepResult, action_type: str) -> ActionRecord | None
     return None
 
 
-def _cancel_of_order(result: StepResult, mission: MissionRecord) -> ActionRecord:
-    """The cancelOrder for the mission's current order, requested now if it was not yet."""
+def _order_cancel(result: StepResult, mission: MissionRecord) -> ActionRecord | None:
+    """The cancelOrder for the mission's current order, if one was requested and is still tracked."""
     assert mission.order is not None
     prefix = f"{mission.order['orderId']}-cancel"
     for action in result.actions:
         if action.action_type == ActionType.CANCEL_ORDER and action.action_id.startswith(prefix):
             return action
+    return None
+
+
+def _cancel_of_order(result: StepResult, mission: MissionRecord) -> ActionRecord:
+    """The cancelOrder for the mission's current order, requested now if it was not yet."""
+    action = _order_cancel(result, mission)
+    if action is not None:
+        return action
+    assert mission.order is not None
     action = ActionRecord(
-        action_id=orders.new_action_id(prefix),
+        action_id=orders.new_action_id(f"{mission.order['orderId']}-cancel"),
         action_type=ActionType.CANCEL_ORDER,
         mission=mission.name,
         status=None,
@@ -280,7 +289,7 @@ def _advance(
     if _ended_by_time_or_owner(result, robot, state, mission, tree, now):
         return
     if mission.order is not None and state is not None:
-        _follow_order(result, state, state_arrived_at, mission, tree, now, settings)
+        _follow_order(result, robot, state, state_arrived_at, mission, tree, now, settings)
         if mission.done:
             return
     if mission.needs_canceled:
@@ -328,56 +337,12 @@ def _order_active(state: State | None, mission: MissionRecord) -> bool:
     return not vda_state.is_idle(state)
 
 
-# --- the mission's order, and the order update sent ahead -------------------------------------------------
-# A running route leaf whose next leaf is certain to be a route (`_extend`) has that leaf sent ahead, as an
-# order update of its own order: the robot drives on from the route's last node instead of stopping there
-# for a new order. The stored order (`MissionRecord.order`) is then both, stitched (`vda5050.orders.stitch`):
-# its ids are the update's, its nodes and edges the running leaf's then the next leaf's, each named after
-# its leaf (`<mission>-n<index>-r<attempt>-s<sequenceId>`), which is how a step tells them apart.
-
-
-@dataclass(frozen=True)
-class SentOrder:
-    """A running mission's stored order, read: the message that carries the running leaf (a new order, or
-    the order update that brought it), and the order update that carries the next leaf, if one was sent
-    ahead. `stored` is what the robot should hold: both, stitched."""
-
-    stored: OrderContent
-    leaf: int  # the running leaf's index in mission_tree
-    message: OrderContent
-    ahead: OrderContent | None = None
-    next_leaf: int | None = None
-
-    @property
-    def latest(self) -> OrderContent:
-        """The latest message: the one the robot must take, re-sent identically while it lacks it."""
-        return self.ahead or self.message
-
-
-def sent_order(order: dict[str, Any]) -> SentOrder:
-    """`MissionRecord.order` read into the running leaf's message and the order update sent ahead."""
-    stored = OrderContent.model_validate(order)
-    first, *rest = stored.nodes
-    leaf = _leaf_of(rest[0] if rest else first)
-    ahead = next((node for node in rest if _leaf_of(node) != leaf), None)
-    if ahead is None:
-        return SentOrder(stored, leaf, stored)
-    message, update = orders.unstitch(stored, ahead.sequence_id - 2)
-    return SentOrder(stored, leaf, message, update, _leaf_of(ahead))
-
-
-def _leaf_of(node: Node) -> int:
-    key = orders.order_key(node.node_id)
-    assert key is not None, f"node {node.node_id} was not built by the dispatch engine"
-    return key.node_index
-
-
-def _stored(order: OrderContent) -> dict[str, Any]:
-    return order.model_dump(mode="json", by_alias=True, exclude_none=True)
+# --- the mission's order, and the order update sent ahead (`dispatch.sent`) ------------------------------
 
 
 def _follow_order(
     result: StepResult,
+    robot: RobotView,
     state: State,
     state_arrived_at: datetime | None,
     mission: MissionRecord,
@@ -387,10 +352,15 @@ def _follow_order(
 ) -> None:
     """Acceptance, resend, rejection, progress and errors of the running leaf's order, and acceptance,
     resend and rejection of the order update sent ahead with the next leaf. A robot that refuses the update,
-    or lacks the order it extends, has it dropped (`_drop_ahead`): the next leaf gets an order of its own."""
+    or lacks the order it extends, has it dropped (`_drop_ahead`): the next leaf gets an order of its own.
+    A robot that lost the order, or stalled on it, is taken over (`dispatch.faults`, `_take_over`)."""
     sent = sent_order(mission.order)
     leaf = tree.nodes[sent.leaf]
     if mission.node_status[leaf.name]["state"] != MissionState.RUNNING:
+        mission.progress_seen_at = None  # no stall clock while no leaf runs on the order
+        return
+    if faults.order_ended(mission, sent) or faults.order_lost(robot, state, state_arrived_at, mission, sent):
+        _take_over(result, robot, state, mission, leaf, sent, now, settings)
         return
     if not mission.order_accepted:
         order_id = sent.stored.order_id
@@ -427,12 +397,103 @@ def _follow_order(
         _follow_action(result, state, mission, leaf, sent.message)
     else:
         _follow_route(state, mission, leaf, sent)
+    if (
+        mission.node_status[leaf.name]["state"] == MissionState.RUNNING
+        and not mission.needs_canceled
+        and _pending_action(result, ActionType.CANCEL_ORDER) is None
+        and faults.watch_progress(robot, state, mission, now, settings.order_stall.total_seconds())
+    ):
+        _end_stalled(result, state, mission, settings)
+
+
+def _end_stalled(
+    result: StepResult, state: State, mission: MissionRecord, settings: DispatchSettings
+) -> None:
+    """An order the robot took and does not execute is canceled; once the robot confirms, the rest goes out
+    anew (`_take_over`). A robot that stalled on an order update (a route sent ahead) gets the compatibility
+    rule ORDER_UPDATE_NOT_EXECUTED: it is sent no routes ahead from then on."""
+    faults.end_stalled(mission)
+    _cancel_of_order(result, mission)
+    if state.order_update_id > 0:
+        seconds = settings.order_stall.total_seconds()
+        why = faults.stalled_reason(state.order_id, state.order_update_id, seconds)
+        result.rules_applied.append((compat.Rule.ORDER_UPDATE_NOT_EXECUTED, why))
+
+
+def _take_over(
+    result: StepResult,
+    robot: RobotView,
+    state: State,
+    mission: MissionRecord,
+    leaf: engine.Node,
+    sent: SentOrder,
+    now: datetime,
+    settings: DispatchSettings,
+) -> None:
+    """The robot no longer runs the leaf's order: it lost it (`faults.order_lost`), or its stalled order
+    was canceled (`faults.order_ended`) and the robot confirmed. An action or move fails (the robot may or
+    may not have done it: the tree decides what follows); a route goes on with a new order of the
+    waypoints the robot had not reached, from where it stands, once it can take one. The update sent ahead
+    is dropped: the next leaf gets an order of its own."""
+    mission.progress_seen_at = None  # no stall clock: the robot's own states wake the steps until then
+    if faults.order_ended(mission, sent):
+        cancel = _order_cancel(result, mission)
+        if cancel is not None and cancel.status not in FINAL:
+            return
+        seconds = settings.order_stall.total_seconds()
+        reason = faults.stalled_reason(sent.latest.order_id, mission.progress["orderUpdateId"], seconds)
+    else:
+        reason = faults.lost_reason(sent.stored.order_id)
+    if leaf.kind != NodeKind.ROUTE:
+        _leaf_failed(mission, leaf, reason)
+        return
+    if sent.ahead is not None:
+        sent = _drop_ahead(mission, sent, state)
+    if (
+        not robot.online
+        or not vda_state.is_idle(state)
+        or not vda_state.may_receive_orders(state)
+        or _pending_action(result, ActionType.CANCEL_ORDER) is not None
+    ):
+        return  # the rest waits until the robot can take it
+    waypoints = faults.remaining_waypoints(sent.message, mission.progress)
+    if not waypoints:
+        mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.COMPLETED)
+        return
+    pose = vda_state.robot_telemetry(state).pose
+    if pose is None:
+        _leaf_failed(mission, leaf, NO_POSITION)
+        return
+    assert leaf.index is not None
+    order = orders.route_order(
+        mission=mission.name,
+        node_index=leaf.index,
+        attempt=mission.attempts.get(leaf.name, 0),
+        start=pose,
+        waypoints=waypoints,
+        start_deviation_xy=settings.start_deviation_xy,
+    )
+    _send_order(result, mission, leaf, order, now)
+
+
+def _send_order(
+    result: StepResult, mission: MissionRecord, leaf: engine.Node, order: OrderContent, now: datetime
+) -> None:
+    """Send the order that runs `leaf` (a new orderId: the leaf's next attempt)."""
+    mission.attempts = {**mission.attempts, leaf.name: mission.attempts.get(leaf.name, 0) + 1}
+    mission.order = stored(order)
+    mission.order_sent_at = now
+    mission.order_accepted = False
+    mission.progress = None
+    mission.progress_seen_at = None
+    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
+    result.messages.append(Outgoing(order))
 
 
 def _drop_ahead(mission: MissionRecord, sent: SentOrder, state: State | None) -> SentOrder:
     """Forget the order update sent ahead: the order is the running leaf's alone again. The next leaf gets
     an order of its own when it starts; having been sent once (`attempts`), it is never sent ahead again."""
-    mission.order = _stored(sent.message)
+    mission.order = stored(sent.message)
     mission.order_accepted = state is not None and vda_state.order_accepted(
         state, sent.message.order_id, sent.message.order_update_id
     )
@@ -627,17 +688,12 @@ def _tick(
             return
     pose = vda_state.robot_telemetry(state).pose
     if pose is None:
-        _leaf_failed(mission, leaf, "Robot does not report its position")
+        _leaf_failed(mission, leaf, NO_POSITION)
         _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
         return
     attempt = mission.attempts.get(leaf.name, 0)
     order = build_order(mission.name, leaf, attempt, pose, settings.start_deviation_xy)
-    mission.attempts = {**mission.attempts, leaf.name: attempt + 1}
-    mission.order = _stored(order)
-    mission.order_sent_at = now
-    mission.order_accepted = False
-    mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
-    result.messages.append(Outgoing(order))
+    _send_order(result, mission, leaf, order, now)
     _extend(result, robot, state, mission, tree, leaf, now)
 
 
@@ -665,12 +721,12 @@ def _take_up_ahead(
     if state is None:
         return True
     if _ahead_held(state, sent):
-        mission.order = _stored(sent.ahead)
+        mission.order = stored(sent.ahead)
         mission.order_accepted = True
         mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.RUNNING)
         if not _route_update_pending(tree, mission, leaf, settings):  # else it starts over (`_tick`)
             started = replace(mission)
-            _follow_order(result, state, state_arrived_at, mission, tree, now, settings)
+            _follow_order(result, robot, state, state_arrived_at, mission, tree, now, settings)
             if mission.node_status[leaf.name]["state"] != MissionState.RUNNING:
                 result.passed.append(started)
         if not mission.done:
@@ -714,6 +770,7 @@ def _extend(
     """
     if (
         leaf.kind != NodeKind.ROUTE
+        or not robot.routes_ahead
         or mission.order is None
         or mission.needs_canceled
         or state is None
@@ -734,61 +791,12 @@ def _extend(
         or _maps_missing_for(state, [following]) is not None
     ):
         return
-    update = _order_update_for(mission.name, sent.stored, following, attempt=0)
+    update = order_update_for(mission.name, sent.stored, following, attempt=0)
     mission.attempts = {**mission.attempts, following.name: 1}
-    mission.order = _stored(orders.stitch(sent.stored, update))
+    mission.order = stored(orders.stitch(sent.stored, update))
     mission.order_sent_at = now
     mission.order_accepted = False
     result.messages.append(Outgoing(update))
-
-
-def build_order(
-    mission: str, leaf: engine.Node, attempt: int, pose: orders.Pose, start_deviation_xy: float
-) -> OrderContent:
-    """The VDA 5050 order that executes a route, move or action leaf from the robot's pose."""
-    assert leaf.index is not None
-    common = {
-        "mission": mission,
-        "node_index": leaf.index,
-        "attempt": attempt,
-        "start": pose,
-        "start_deviation_xy": start_deviation_xy,
-    }
-    if leaf.kind == NodeKind.ROUTE:
-        return orders.route_order(waypoints=[_waypoint(wp) for wp in leaf.params["waypoints"]], **common)
-    if leaf.kind == NodeKind.MOVE:
-        return orders.move_order(
-            distance=leaf.params.get("distance"), rotation=leaf.params.get("rotation"), **common
-        )
-    return orders.action_order(
-        action_type=leaf.params["action_type"],
-        parameters=leaf.params.get("action_parameters") or {},
-        **common,
-    )
-
-
-def _order_update_for(mission: str, previous: OrderContent, leaf: engine.Node, attempt: int) -> OrderContent:
-    """The order update that extends `previous` at its last node with route `leaf`, its new nodes and edges
-    named after the leaf."""
-    assert leaf.index is not None
-    return orders.order_update(
-        previous,
-        waypoints=[_waypoint(wp) for wp in leaf.params["waypoints"]],
-        ids=orders.order_id(mission, leaf.index, attempt),
-    )
-
-
-def _waypoint(pose: dict[str, Any]) -> orders.Waypoint:
-    return orders.Waypoint(
-        x=float(pose.get("x", 0.0)),
-        y=float(pose.get("y", 0.0)),
-        theta=float(pose.get("theta", 0.0)),
-        map_id=pose.get("map_id", ""),
-        allowed_deviation_xy=float(pose.get("allowedDeviationXY", orders.DEFAULT_ALLOWED_DEVIATION_XY)),
-        allowed_deviation_theta=float(
-            pose.get("allowedDeviationTheta", orders.DEFAULT_ALLOWED_DEVIATION_THETA)
-        ),
-    )
 
 
 def _route_update_pending(
@@ -810,7 +818,7 @@ def _route_update_pending(
         before = sent.model_copy(
             update={"order_update_id": sent.order_update_id - 1, "nodes": sent.nodes[:1], "edges": []}
         )
-        return _order_update_for(mission.name, before, leaf, key.attempt) != sent
+        return order_update_for(mission.name, before, leaf, key.attempt) != sent
     first = sent.nodes[0].node_position
     assert first is not None
     start = orders.Pose(first.x, first.y, first.theta or 0.0, first.map_id)

@@ -313,6 +313,10 @@ DISPATCH_INSTANT_ACTION_RESEND_SECONDS = env_float("FLEET_INSTANT_ACTION_RESEND_
 DISPATCH_REQUEST_FACTSHEET = env_bool("FLEET_REQUEST_FACTSHEET", True)
 # allowedDeviationXY of an order's first node (the robot's own position), so a strict robot accepts it.
 DISPATCH_START_NODE_DEVIATION = env_float("FLEET_START_NODE_DEVIATION", 0.5)
+# A robot that took its order (or an order update) and shows no progress on it this long, while not paused,
+# in teleop, driving, at a running action or reporting an error, has it canceled and the rest sent as a new
+# order (dispatch.faults); 0 turns the check off.
+DISPATCH_ORDER_STALL_SECONDS = env_float("FLEET_ORDER_STALL_SECONDS", 30.0)
 # How often beat looks for heartbeats, timeouts, deadlines and unacknowledged messages.
 DISPATCH_BEAT_PERIOD = env_float("FLEET_BEAT_PERIOD", 1.0)
 # How often beat looks for robots that finished their order while their mission did not move on (a step

@@ -150,6 +150,7 @@ class MissionAdmin(admin.ModelAdmin):
             "Current VDA 5050 order",
             {"classes": ("collapse",), "fields": ("order", "order_sent_at", "order_accepted", "attempts")},
         ),
+        ("Progress on the order", {"classes": ("collapse",), "fields": ("progress", "progress_seen_at")}),
         (
             "Raw",
             {

@@ -49,6 +49,12 @@ class Mission(models.Model):
     order_sent_at = models.DateTimeField(null=True, blank=True)
     order_accepted = models.BooleanField(default=False)
     attempts = models.JSONField(default=dict, blank=True, help_text="Orders sent so far, per node name.")
+    progress = models.JSONField(
+        null=True, blank=True, help_text="The robot's progress on the order, as a step last saw it change."
+    )
+    progress_seen_at = models.DateTimeField(
+        null=True, blank=True, help_text="When the robot last showed progress on the order (its stall clock)."
+    )
 
     # Position in the robot's FIFO queue: missions of one robot run in ascending order.
     queue_position = models.BigIntegerField(db_default=NextQueuePosition(), editable=False)

@@ -38,6 +38,7 @@ from robots.choices import InstantActionsKey, SettingSource
 from robots.models import InstantAction, Robot
 from robots.selectors import robot_unfinished_instant_actions
 from robots.services import robot_rows_delete
+from vda5050 import compat
 from vda5050.codec import encode, header_for, parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
@@ -53,6 +54,7 @@ _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(FINAL)
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
         r.instant_actions_key_source = '{SettingSource.OPERATOR}',
+        NOT r.compatibility_rules @> '[{{"rule": "{compat.Rule.ORDER_UPDATE_NOT_EXECUTED}"}}]'::jsonb,
         r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
         EXISTS (
@@ -85,6 +87,8 @@ STEP_STATUS_FIELDS = (
     "order_sent_at",
     "order_accepted",
     "attempts",
+    "progress",
+    "progress_seen_at",
 )
 
 
@@ -257,6 +261,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         switch_teleop,
         actions_key,
         actions_key_by_operator,
+        routes_ahead,
         next_order_header_id,
         next_instant_actions_header_id,
         outbox,
@@ -281,6 +286,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         switch_teleop=switch_teleop,
         instant_actions_key=actions_key,
         instant_actions_key_by_operator=actions_key_by_operator,
+        routes_ahead=routes_ahead,
     )
     ended_a_mission = False
     while True:
@@ -352,6 +358,7 @@ def dispatch_settings() -> DispatchSettings:
         order_resend=timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS),
         instant_action_resend=timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS),
         start_deviation_xy=settings.DISPATCH_START_NODE_DEVIATION,
+        order_stall=timedelta(seconds=settings.DISPATCH_ORDER_STALL_SECONDS),
     )
 
 

@@ -82,11 +82,14 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
 
 
 def robots_stalled(*, now: datetime | None = None) -> list[str]:
-    """Robots idle at the end of the order their running mission sent, the mission not moved on since.
+    """Robots idle at the end of the order their running mission sent, or no longer holding it
+    (`order_lacked`: a restarted robot), the mission not moved on since; and robots whose order may have
+    stalled (`_orders_maybe_stalled`).
 
-    The last line of defence: the state that ended the order asked for a step, and a step that failed is
-    retried; but a process killed with that retry pending, or a lost request, leaves nothing else to step
-    the robot, which sends no news while it idles.
+    The last line of defence: the state that ended or lost the order asked for a step, and a step that
+    failed is retried; but a process killed with that retry pending, a lost request, or a state too early to
+    say (`dispatch.held.arrived_after_order`) leaves nothing else to step the robot, which sends no news
+    while it idles.
     """
     now = now or timezone.now()
     rows = list(
@@ -94,16 +97,33 @@ def robots_stalled(*, now: datetime | None = None) -> list[str]:
             state=MissionState.RUNNING,
             order__isnull=False,
             updated_at__lte=now - timedelta(seconds=STALLED_MISSION_SECONDS),
-        ).values_list("robot", KT("order__orderId"), KT("order__orderUpdateId"))
+        ).values_list("robot", "order_sent_at", KT("order__orderId"), KT("order__orderUpdateId"))
     )
     held = livestate.orders_held([robot for robot, *_ in rows])
-    return sorted(
-        {
-            robot
-            for robot, order_id, update_id in rows
-            if update_id is not None
-            and order_finished(held[robot], order_id=order_id, update_id=int(update_id))
-        }
+    ended = {
+        robot
+        for robot, sent_at, order_id, update_id in rows
+        if update_id is not None
+        and sent_at is not None
+        and (
+            order_finished(held[robot], order_id=order_id, update_id=int(update_id))
+            or order_lacked(held[robot], order_id=order_id, update_id=int(update_id), sent_at=sent_at)
+        )
+    }
+    return sorted(ended | set(_orders_maybe_stalled(now)))
+
+
+def _orders_maybe_stalled(now: datetime) -> list[str]:
+    """Robots whose mission's order has shown no progress for FLEET_ORDER_STALL_SECONDS (its stall clock,
+    `dispatch.faults.watch_progress`): a step judges whether the order stalled, as a robot standing still
+    sends no state that would wake one."""
+    if not settings.DISPATCH_ORDER_STALL_SECONDS:
+        return []
+    stalled_since = now - timedelta(seconds=settings.DISPATCH_ORDER_STALL_SECONDS)
+    return list(
+        Mission.objects.filter(state=MissionState.RUNNING, progress_seen_at__lte=stalled_since)
+        .values_list("robot", flat=True)
+        .distinct()
     )
 
 

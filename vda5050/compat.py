@@ -34,6 +34,11 @@ class Rule(StrEnum):
     # action, but never reports the action's state (vda-5050-lib 1.4.0): the cancel counts as FAILED, which
     # is what the document says the robot should have reported.
     CANCEL_REFUSED_BY_ERROR_ONLY = "cancel_refused_by_error_only"
+    # The robot takes an order update (its state shows the orderUpdateId) and then shows no progress on it,
+    # not paused, driving or reporting an error, for FLEET_ORDER_STALL_SECONDS (vda5050-sdk 0.2.0, whose
+    # executor fails internally on an update that extends a finished route): the update is canceled, the
+    # rest goes out as a new order, and the robot is sent no routes ahead from then on.
+    ORDER_UPDATE_NOT_EXECUTED = "order_update_not_executed"
 
 
 def actions_key_rejection(state: State) -> Error | None:

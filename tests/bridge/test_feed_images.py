@@ -1,6 +1,6 @@
-"""The change feed records what the API shows (migration changes 0003): a row's image leaves out the columns
-only the dispatch core reads, and a write of those alone records nothing. Real PostgreSQL and Redis, the
-step's own path, outside a test transaction (the feed's rows are written by triggers at commit's pace)."""
+"""The change feed records what the API shows (migrations changes 0003, 0004): a row's image leaves out the
+columns only the dispatch core reads, and a write of those alone records nothing. Real PostgreSQL and Redis,
+the step's own path, outside a test transaction (the feed's rows are written by triggers at commit's pace)."""
 
 import importlib
 import re
@@ -20,7 +20,7 @@ from vda5050.models import OrderContent
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
-UNSHOWN = importlib.import_module("changes.migrations.0003_images_of_what_the_api_shows").UNSHOWN
+UNSHOWN = importlib.import_module("changes.migrations.0004_mission_progress_unshown").UNSHOWN
 ROBOT_UNSHOWN = UNSHOWN[Robot._meta.db_table][1]
 MISSION_UNSHOWN = UNSHOWN[Mission._meta.db_table][1]
 

@@ -12,9 +12,11 @@ from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import robot_step
 from missions.selectors import robots_due_for_step, robots_stalled
+from missions.services import mission_create
 from missions.tuning import STALLED_MISSION_SECONDS
 from robots.models import Robot
 from tests.bridge.messages import running_order, state_message
+from tests.factories import TEST_ACTOR
 from vda5050.models import OrderContent
 from workers.bridge.loop import Bridge
 
@@ -128,3 +130,68 @@ def test_a_robot_still_on_its_missions_order_or_on_another_is_not_stalled(
         [state_message(robot, header_id=3, at=2.0, order_id="elsewhere-n0")], received_at=time.time()
     )
     assert robot.name not in robots_stalled(now=later)  # idle, but on an order not the mission's
+
+
+# --- orders taken and not executed ------------------------------------------------------------------------
+
+ORDER_STALL = timedelta(seconds=settings.DISPATCH_ORDER_STALL_SECONDS + 1)
+
+
+def test_a_robot_that_took_its_order_and_stands_still_is_stepped_and_the_order_canceled(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """A stalled robot's states wake no step (they do not change): beat does, once its clock has run."""
+    order_id = running_order(bridge, robot)
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])],
+        received_at=after_the_order(),
+    )
+    robot_step(name=robot.name)
+    assert Mission.objects.get(robot=robot.name).progress_seen_at is not None
+
+    assert robot.name not in robots_stalled(now=timezone.now() + STALLED)
+    assert robot.name in robots_stalled(now=timezone.now() + ORDER_STALL)
+    outcome = robot_step(name=robot.name, now=timezone.now() + ORDER_STALL)
+    assert "cancelOrder" in [
+        a.action_type for m in outcome.messages for a in getattr(m.content, "actions", [])
+    ]
+
+
+def test_a_robot_with_the_order_update_rule_is_sent_no_route_ahead(bridge: Bridge, robot: Robot) -> None:
+    Robot.objects.filter(name=robot.name).update(
+        compatibility_rules=[{"rule": "order_update_not_executed", "applied_at": "", "reason": ""}]
+    )
+    bridge.handle([state_message(robot, header_id=1, at=0.0)])
+    routes = [
+        {"name": name, "route": {"waypoints": [{"x": x, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
+        for name, x in (("r1", 5.0), ("r2", 7.0))
+    ]
+    mission_create(
+        actor=TEST_ACTOR,
+        name=f"{robot.name}-m",
+        prefix=None,
+        spec={"robot": robot.name, "mission_tree": routes},
+    )
+
+    orders = [m.content for m in robot_step(name=robot.name).messages if isinstance(m.content, OrderContent)]
+
+    assert [order.order_update_id for order in orders] == [0]
+
+
+def test_a_robot_that_no_longer_holds_its_taken_order_is_stepped_once_the_mission_stands_still(
+    bridge: Bridge, robot: Robot
+) -> None:
+    """A restarted robot whose first states, alike, came too soon after the order to say it lost it: none of
+    them wakes a step, beat's check does."""
+    order_id = running_order(bridge, robot)
+    bridge.handle(
+        [state_message(robot, header_id=2, at=1.0, order_id=order_id, node_states=[2])],
+        received_at=after_the_order(),
+    )
+    robot_step(name=robot.name)
+    bridge.handle([state_message(robot, header_id=0, at=2.0)], received_at=after_the_order() + 1)
+
+    assert robot.name in robots_stalled(now=timezone.now() + STALLED)
+    outcome = robot_step(name=robot.name, now=timezone.now() + STALLED)
+    resumed = [m.content.order_id for m in outcome.messages if isinstance(m.content, OrderContent)]
+    assert resumed == [order_id.replace("-r0", "-r1")]

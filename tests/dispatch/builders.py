@@ -304,6 +304,7 @@ class Dispatcher:
     actions: list[ActionRecord] = field(default_factory=list)
     now: datetime = NOW
     results: list[StepResult] = field(default_factory=list)
+    settings: DispatchSettings = SETTINGS
 
     def step(
         self, state: State | None, *, after: float = 0.0, arrived_at: datetime | None = None
@@ -318,6 +319,7 @@ class Dispatcher:
             actions=self.actions,
             now=self.now,
             state_arrived_at=arrived_at,
+            settings=self.settings,
         )
         self.mission = result.mission
         self.actions = [a for a in result.actions if a.status not in FINAL]

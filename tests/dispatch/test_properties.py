@@ -10,7 +10,8 @@ import pytest
 
 from dispatch.held import NO_FINISHED_ACTIONS, state_digest, takes_order_only
 from dispatch.records import ActionRecord
-from dispatch.step import PAUSE_ORDER, sent_order, step
+from dispatch.sent import sent_order
+from dispatch.step import PAUSE_ORDER, step
 from dispatch.vocabulary import Lifecycle
 from tests.dispatch.builders import (
     IDLE_STATE,

@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import pytest
 
-from dispatch.step import SentOrder, sent_order
+from dispatch.sent import SentOrder, sent_order
 from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     NOW,

@@ -241,9 +241,11 @@ class Simulator:
 
 
 def simulator_command(*specs: str, extra: tuple[str, ...] = ()) -> list[str]:
-    """A simulator of robot specs like `"{name},0,0"` whose robots drive fast and report often."""
+    """A simulator of robot specs like `"{name},0,0"` whose robots drive fast and report often, on the
+    interface (first topic level) the robots created here get (FLEET_VDA5050_INTERFACE_NAME)."""
     fast = ["--tick_period", "0.05", "--speed", "10", "--state_period", "0.5"]
-    return [PYTHON, "-m", "simulator", "--robots", *specs, *fast, *extra]
+    interface = ["--interface_name", settings.VDA5050_INTERFACE_NAME]
+    return [PYTHON, "-m", "simulator", "--robots", *specs, *fast, *interface, *extra]
 
 
 @pytest.fixture

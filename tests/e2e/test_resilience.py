@@ -8,7 +8,7 @@ import pytest
 from django.conf import settings
 
 from robots import livestate
-from tests.e2e.conftest import BRIDGE, PYTHON, WORKER, Process
+from tests.e2e.conftest import BRIDGE, WORKER, Process, simulator_command
 from tests.e2e.helpers import (
     create_robot,
     get,
@@ -67,21 +67,7 @@ def test_broker_restart_mid_mission(api, stack, unique, tmp_path):
             Process("broker-worker", WORKER, env, tmp_path / "worker.log"),
             Process(
                 "broker-simulator",
-                [
-                    PYTHON,
-                    "-m",
-                    "simulator",
-                    "--robots",
-                    f"{robot},0,0",
-                    "--tick_period",
-                    "0.05",
-                    "--speed",
-                    "4",
-                    "--state_period",
-                    "0.5",
-                    "--mqtt_port",
-                    str(broker.port),
-                ],
+                simulator_command(f"{robot},0,0", extra=("--speed", "4", "--mqtt_port", str(broker.port))),
                 env,
                 tmp_path / "simulator.log",
             ),

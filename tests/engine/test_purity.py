@@ -22,6 +22,8 @@ print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "red
         "dispatch.records",
         "dispatch.held",
         "dispatch.assignment",
+        "dispatch.sent",
+        "dispatch.faults",
         "vda5050",
         "vda5050.codec",
         "vda5050.models",
