@@ -1,4 +1,10 @@
-"""Fixtures shared by the test suite."""
+"""Fixtures shared by the test suite: API clients and tokens, a real API server, robots for the bridge and
+the step, a bridge that never connects to MQTT."""
+
+import uuid
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
 
 import pytest
 from rest_framework.test import APIClient
@@ -6,6 +12,14 @@ from rest_framework.test import APIClient
 import missions.services
 import robots.services
 from access.services import api_token_create
+from robots import livestate
+from robots.models import InstantAction, Robot
+from robots.services import robot_create
+from tests.factories import TEST_ACTOR
+from tests.granian_server import ASGI, GranianServer, granian_server
+from tests.private_redis import PrivateRedis
+from vda5050.models import ActionStatus
+from workers.bridge.loop import Bridge
 
 # The name of the token the `api` fixtures authenticate with; writes are recorded as token:<name>.
 API_TOKEN_NAME = "tests"
@@ -39,3 +53,52 @@ def woken(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     monkeypatch.setattr(robots.services, "request_steps", names.extend)
     monkeypatch.setattr(missions.services, "request_steps", names.extend)
     return names
+
+
+@pytest.fixture
+def api_server(transactional_db: None, tmp_path: Path) -> Iterator[GranianServer]:
+    """granian with one worker process on the test database (so its writes are committed: the test is
+    transactional, as is the server's token) and a Redis of its own for the wake-ups it sends (no worker
+    takes them)."""
+    redis = PrivateRedis(tmp_path).start()
+    _, token = api_token_create(name="api-server")
+    try:
+        with granian_server(
+            ASGI, log=tmp_path / "granian.log", token=token, env={"FLEET_REDIS_URL": redis.url}
+        ) as server:
+            yield server
+    finally:
+        redis.kill()
+
+
+@pytest.fixture
+def make_robot(db: None) -> Iterator[Callable[..., Robot]]:
+    """Creates robots (through the service) named uniquely for this test; forgets their live state after."""
+    names: list[str] = []
+
+    def make(prefix: str = "bridge", **spec: Any) -> Robot:
+        robot = robot_create(
+            actor=TEST_ACTOR, name=f"{prefix}-{uuid.uuid4().hex[:10]}", prefix=None, spec=spec
+        )
+        names.append(robot.name)
+        return robot
+
+    yield make
+    for name in names:
+        livestate.forget(name)
+        livestate.client().delete(livestate.step_marker_key(name))
+
+
+@pytest.fixture
+def bridge() -> Bridge:
+    """A bridge that only ever handles what a test hands it: run_forever (and so MQTT) is never called."""
+    return Bridge()
+
+
+@pytest.fixture
+def robot(make_robot: Callable[..., Robot], bridge: Bridge) -> Robot:
+    """A robot the bridge knows, whose creation-time factsheet request has been answered."""
+    created = make_robot()
+    InstantAction.objects.filter(robot=created).update(status=ActionStatus.FINISHED.value)
+    bridge.directory.reload()
+    return created

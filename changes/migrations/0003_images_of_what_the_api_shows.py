@@ -8,7 +8,7 @@ drops an object whose image shows nothing new.
 
 The update trigger's WHEN compares the shown columns, listed when the migration runs: a migration that adds
 a column to either table must make the triggers again (`triggers_sql`), else a change of that column alone
-goes unrecorded (tests/bridge/test_feed_images.py checks that every column is compared or unshown).
+goes unrecorded (tests/changes/test_feed_images.py checks that every column is compared or unshown).
 """
 
 import importlib

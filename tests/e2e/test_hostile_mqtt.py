@@ -1,5 +1,6 @@
-"""The hostile corpus (tests/bridge/hostile.py) published through Mosquitto to the real bridge process: each
-message is counted under its reason, nothing the bridge stores changes, and the bridge goes on working."""
+"""The hostile corpus (tests/workers/bridge/hostile.py) published through Mosquitto to the real bridge
+process: each message is counted under its reason, nothing the bridge stores changes, and the bridge goes
+on working."""
 
 import uuid
 from collections import Counter
@@ -13,11 +14,11 @@ from django.conf import settings
 
 from robots import livestate
 from robots.models import Robot
-from tests.bridge.hostile import corpus, history
-from tests.bridge.messages import state_message, topic
 from tests.e2e.conftest import Stack
 from tests.e2e.helpers import create_robot
 from tests.waiting import wait_for
+from tests.workers.bridge.hostile import corpus, history
+from tests.workers.bridge.messages import state_message, topic
 from workers import metrics
 from workers.bridge.status_writer import STATUS_COLUMNS
 

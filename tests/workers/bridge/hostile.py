@@ -13,9 +13,9 @@ from typing import Any
 import orjson
 from django.conf import settings
 
-from tests.bridge.messages import topic, wire
 from tests.dispatch.builders import robot_state
 from tests.vda5050.samples import full_factsheet
+from tests.workers.bridge.messages import topic, wire
 from vda5050.models import AgvPosition, ConnectionContent, ConnectionState, VisualizationContent
 from workers import metrics
 from workers.bridge.gate import Drop, Ignored
@@ -56,7 +56,8 @@ def content(kind: str, *, old: bool = False) -> Any:
     return VisualizationContent(agv_position=position)
 
 
-# When each history message was sent (s after tests.bridge.messages.T0): the connection loss before the state.
+# When each history message was sent (s after tests.workers.bridge.messages.T0): the connection loss
+# before the state.
 HISTORY_AT = {"connection": 1.0, "state": 2.0, "factsheet": 2.0, "visualization": 3.0}
 
 

@@ -15,8 +15,8 @@ from missions.selectors import robots_due_for_step, robots_stalled
 from missions.services import mission_create
 from missions.tuning import STALLED_MISSION_SECONDS
 from robots.models import Robot
-from tests.bridge.messages import running_order, state_message
 from tests.factories import TEST_ACTOR
+from tests.workers.bridge.messages import running_order, state_message
 from vda5050.models import OrderContent
 from workers.bridge.loop import Bridge
 

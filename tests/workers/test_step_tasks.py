@@ -12,9 +12,9 @@ from missions.robot_step import StepOutcome, robot_step
 from missions.services import mission_create
 from robots import livestate
 from robots.models import Robot
-from tests.bridge.messages import steps_queued
-from tests.bridge.test_robot_step import put_state
 from tests.factories import TEST_ACTOR
+from tests.missions.test_robot_step import put_state
+from tests.workers.bridge.messages import steps_queued
 from workers import long_lived, metrics, step_runs, tuning
 from workers.step_requests import queue_steps
 from workers.tasks import step_robots

@@ -17,7 +17,9 @@ from robots.choices import AgvClass
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST
 from robots.status import robot_check_heartbeats
-from tests.bridge.messages import (
+from tests.dispatch.builders import error
+from tests.vda5050.samples import full_factsheet
+from tests.workers.bridge.messages import (
     connection_message,
     factsheet_message,
     running_order,
@@ -26,9 +28,7 @@ from tests.bridge.messages import (
     steps_queued,
     visualization_message,
 )
-from tests.bridge.rows import held
-from tests.dispatch.builders import error
-from tests.vda5050.samples import full_factsheet
+from tests.workers.bridge.rows import held
 from vda5050.models import ActionStatus, ConnectionState, ErrorLevel, InfoLevel, Information
 from workers import metrics, tuning
 from workers.bridge.loop import Bridge

@@ -23,10 +23,10 @@ from missions.services import mission_create
 from robots import livestate
 from robots.models import InstantAction, Robot
 from robots.services import robot_create
-from tests.bridge.test_robot_step import orders, put_state
 from tests.database import other_connection
 from tests.dispatch.builders import finished
 from tests.factories import TEST_ACTOR, route_node
+from tests.missions.test_robot_step import orders, put_state
 from vda5050.models import ActionStatus
 
 pytestmark = pytest.mark.django_db(transaction=True)

@@ -8,9 +8,9 @@ import pytest
 
 from robots import livestate
 from robots.models import Robot
-from tests.bridge.messages import T0, step_requested
 from tests.dispatch.builders import robot_state
 from tests.vda5050.samples import full_factsheet
+from tests.workers.bridge.messages import T0, step_requested
 from vda5050.codec import encode, header_for
 from vda5050.models import Content
 from vda5050.topics import RobotAddress, Topic, topic_for

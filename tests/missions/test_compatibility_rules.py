@@ -10,8 +10,8 @@ from missions.robot_step import robot_step
 from robots import livestate
 from robots.models import InstantAction, Robot
 from robots.services import instant_action
-from tests.bridge.test_robot_step import NOW, MakeRobot, put_state
 from tests.dispatch.test_compatibility import LIB_1_4_REJECTION, lib_1_4_no_order_to_cancel
+from tests.missions.test_robot_step import NOW, MakeRobot, put_state
 from vda5050.models import ActionType
 from vda5050.topics import Topic
 

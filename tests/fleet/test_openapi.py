@@ -13,7 +13,7 @@ from drf_spectacular.validation import validate_schema
 from kit.api.fields import MAX_SECONDS
 from kit.api.names import OBJECT_NAME_MAX_LENGTH
 from missions.tuning import MAX_NOTIFY_TIMEOUT
-from tests.api.readme import README_MISSIONS, README_ROBOT
+from tests.readme import README_MISSIONS, README_ROBOT
 
 ENDPOINTS = {
     "/robot": {"get", "post"},

@@ -27,9 +27,9 @@ from robots import livestate
 from robots.choices import RobotState
 from robots.models import InstantAction, Robot
 from robots.services import FACTSHEET_REQUEST, robot_delete
-from tests.bridge.messages import T0, wire
 from tests.dispatch.builders import check_schema, finished, on_order, robot_state
 from tests.factories import TEST_ACTOR
+from tests.workers.bridge.messages import T0, wire
 from vda5050.codec import parse_state
 from vda5050.models import Action, ActionStatus, InstantActionsContent, OrderContent, State
 from vda5050.orders import stitch

@@ -15,7 +15,7 @@ from missions.models import Mission
 from missions.robot_step import robot_step
 from missions.services import mission_orders_accepted
 from robots.models import Robot
-from tests.bridge.test_robot_step import create, put_state
+from tests.missions.test_robot_step import create, put_state
 from vda5050.models import OrderContent
 
 pytestmark = pytest.mark.django_db(transaction=True)

@@ -7,7 +7,7 @@ from rest_framework import serializers
 
 from missions.api.serializers import MissionSerializer
 from missions.models import Mission
-from tests.api.readme import README_MISSIONS
+from tests.readme import README_MISSIONS
 
 pytestmark = pytest.mark.django_db
 

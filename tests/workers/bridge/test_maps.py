@@ -14,10 +14,10 @@ from missions.services import mission_create
 from robots.choices import MapAction
 from robots.models import InstantAction, Robot
 from robots.services import robot_map_action
-from tests.bridge.messages import T0, step_requested
-from tests.bridge.test_robot_step import instant_actions, put_state, step
 from tests.dispatch.builders import robot_state
 from tests.factories import TEST_ACTOR
+from tests.missions.test_robot_step import instant_actions, put_state, step
+from tests.workers.bridge.messages import T0, step_requested
 from vda5050.codec import encode, header_for
 from vda5050.models import ActionStatus, Map, MapStatus
 from vda5050.topics import RobotAddress

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 
 from robots import livestate
 from robots.models import Robot
-from tests.bridge.hostile import SUBSCRIBED, Case, corpus, history
-from tests.bridge.messages import connection_message, state_message, step_requested, topic
-from tests.bridge.rows import held
+from tests.workers.bridge.hostile import SUBSCRIBED, Case, corpus, history
+from tests.workers.bridge.messages import connection_message, state_message, step_requested, topic
+from tests.workers.bridge.rows import held
 from vda5050.codec import parse
 from vda5050.errors import ProtocolError
 from vda5050.models import ConnectionState

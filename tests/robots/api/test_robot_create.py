@@ -6,8 +6,8 @@ import pytest
 from django.conf import settings
 
 from robots.models import Robot
-from tests.api.readme import README_ROBOT
 from tests.factories import RobotFactory
+from tests.readme import README_ROBOT
 
 pytestmark = pytest.mark.django_db
 

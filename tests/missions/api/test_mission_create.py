@@ -7,9 +7,9 @@ import pytest
 
 from missions.models import Mission
 from robots import livestate
-from tests.api.readme import README_MISSIONS
 from tests.factories import MissionFactory
 from tests.private_redis import PrivateRedis, live_state_in
+from tests.readme import README_MISSIONS
 from tests.waiting import wait_for
 from workers import step_requests
 
