@@ -6,10 +6,14 @@ default that works against the services of a local development machine.
 
 import os
 from pathlib import Path
+from typing import TypeVar
 
 from django.core.exceptions import ImproperlyConfigured
 
 BASE_DIR = Path(__file__).resolve().parent.parent
+
+
+Number = TypeVar("Number", int, float)
 
 
 def env_str(name: str, default: str) -> str:
@@ -17,11 +21,22 @@ def env_str(name: str, default: str) -> str:
 
 
 def env_int(name: str, default: int) -> int:
-    return int(os.environ.get(name, default))
+    return _env_number(name, default, int, "a whole number")
 
 
 def env_float(name: str, default: float) -> float:
-    return float(os.environ.get(name, default))
+    return _env_number(name, default, float, "a number")
+
+
+def _env_number(name: str, default: Number, kind: type[Number], what: str) -> Number:
+    """The variable's value, or a start-up error that names it (not a bare ValueError from int())."""
+    value = os.environ.get(name)
+    if value is None:
+        return default
+    try:
+        return kind(value)
+    except ValueError:
+        raise ValueError(f"{name} must be {what}, not {value!r}") from None
 
 
 def env_bool(name: str, default: bool) -> bool:
