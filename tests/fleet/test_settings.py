@@ -29,6 +29,10 @@ def test_a_malformed_number_names_its_variable(variable: str, value: str, messag
 def test_numbers_from_the_environment_are_read() -> None:
     env = {**os.environ, "FLEET_NOTIFY_BACKOFF_SECONDS": "3", "FLEET_ORDER_RESEND_SECONDS": "2.5"}
     env["FLEET_SECRET_KEY"] = "x"
-    check = "from fleet import settings as s; print(s.NOTIFY_BACKOFF_SECONDS, s.DISPATCH_ORDER_RESEND_SECONDS)"
-    done = subprocess.run([sys.executable, "-c", check], cwd=ROOT, env=env, capture_output=True, text=True)
+    check = (
+        "from fleet import settings as s; print(s.NOTIFY_BACKOFF_SECONDS, s.DISPATCH_ORDER_RESEND_SECONDS)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", check], cwd=ROOT, env=env, capture_output=True, text=True
+    )
     assert done.stdout.split() == ["3", "2.5"], done.stderr
