@@ -20,7 +20,8 @@ class Station(models.Model):
     pose_x = models.FloatField(default=0.0)
     pose_y = models.FloatField(default=0.0)
     pose_theta = models.FloatField(default=0.0)
-    pose_map_id = models.CharField(max_length=100, blank=True, default="")
+    # Text: a map id is free text of up to FLEET_API_MAX_TEXT_LENGTH characters, as in mission waypoints.
+    pose_map_id = models.TextField(blank=True, default="")
     robot_types = models.JSONField(
         default=list, blank=True, help_text="The robot types (agv_class) it serves; empty: any robot."
     )

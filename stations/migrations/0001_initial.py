@@ -20,7 +20,7 @@ class Migration(migrations.Migration):
                 ('pose_x', models.FloatField(default=0.0)),
                 ('pose_y', models.FloatField(default=0.0)),
                 ('pose_theta', models.FloatField(default=0.0)),
-                ('pose_map_id', models.CharField(blank=True, default='', max_length=100)),
+                ('pose_map_id', models.TextField(blank=True, default='')),
                 ('robot_types', models.JSONField(blank=True, default=list, help_text='The robot types (agv_class) it serves; empty: any robot.')),
                 ('capacity', models.PositiveIntegerField(default=1, help_text='How many robots it holds at once.')),
                 ('reservations', models.JSONField(blank=True, default=list, editable=False)),

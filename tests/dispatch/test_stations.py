@@ -2,7 +2,7 @@
 where to park; table-driven cases, then properties over random fleets (bounded and derandomized)."""
 
 from dataclasses import replace
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import pytest
 from hypothesis import given, settings
@@ -25,7 +25,7 @@ from dispatch.stations import (
 )
 from dispatch.vocabulary import StationKind
 
-NOW = datetime(2026, 11, 28, 2, 0, tzinfo=timezone.utc)
+NOW = datetime(2026, 11, 28, 2, 0, tzinfo=UTC)
 CHARGER, PARKING = StationKind.CHARGER, StationKind.PARKING
 
 

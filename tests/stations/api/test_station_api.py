@@ -156,3 +156,12 @@ def test_the_list_filters_by_kind_map_robot_type_and_names(api):
     assert names("?names=p1&names=c2") == ["c2", "p1"]
     assert api.get("/station?kind=DOCK").status_code == 400
     assert api.get("/station?kind=").status_code == 400
+
+
+def test_a_map_id_as_long_as_any_text_is_stored(api, settings):
+    long_map = "m" * settings.API_MAX_TEXT_LENGTH
+
+    response = api.post("/station", {**CHARGER, "pose": {"map_id": long_map}}, format="json")
+
+    assert response.status_code == 200, response.content
+    assert api.get(f"/station?map_id={long_map}").json()[0]["pose"]["map_id"] == long_map
