@@ -35,3 +35,6 @@ class WriteAction(models.TextChoices):
     MISSION_CANCEL = "mission_cancel"
     MISSION_UPDATE = "mission_update"
     MISSION_DELETE = "mission_delete"
+    STATION_CREATE = "station_create"
+    STATION_UPDATE = "station_update"
+    STATION_DELETE = "station_delete"

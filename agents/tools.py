@@ -28,7 +28,7 @@ from rest_framework.renderers import JSONRenderer
 
 from access.choices import VIA_MCP
 from access.services import writes_via
-from dispatch.vocabulary import MissionState, RobotState
+from dispatch.vocabulary import MissionState, RobotState, StationKind
 from kit.api.errors import exception_handler
 from kit.api.health import HEALTH_STATUS
 from kit.api.serializers import body_validated
@@ -39,6 +39,8 @@ from robots.api.serializers import RobotCreateSerializer, RobotSerializer
 from robots.choices import TeleopAction
 from robots.selectors import robot_get, robot_list
 from robots.services import robot_create, robot_teleop
+from stations.api.serializers import StationSerializer
+from stations.selectors import station_list
 
 logger = logging.getLogger(__name__)
 
@@ -59,6 +61,7 @@ ACTIVE_STATES = (MissionState.RUNNING, MissionState.PENDING)
 
 RobotStateName = Literal[tuple(state.value for state in RobotState)]
 MissionStateName = Literal[tuple(state.value for state in MissionState)]
+StationKindName = Literal[tuple(kind.value for kind in StationKind)]
 Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.:-]+$")]
 
 READS = ToolAnnotations(readOnlyHint=True, openWorldHint=False)
@@ -188,6 +191,17 @@ def _robots(**filters: Any) -> list[dict[str, Any]]:
 
 def _missions(**filters: Any) -> list[dict[str, Any]]:
     return api_json(MissionSerializer(mission_list(filters=_query(**filters)), many=True).data)
+
+
+def station_text(station: dict[str, Any]) -> str:
+    pose = station["pose"]
+    held = ", ".join(station["status"]["reservations"]) or "none"
+    types = ", ".join(station["robot_types"]) or "any"
+    return (
+        f"**{station['name']}** ({station['kind']})\n"
+        f"- Position: ({pose['x']:.2f}, {pose['y']:.2f}) on map {pose['map_id']!r}\n"
+        f"- Robot types: {types}; capacity {station['capacity']}; held by: {held}\n"
+    )
 
 
 def robot_text(robot: dict[str, Any]) -> str:
@@ -349,6 +363,20 @@ def get_idle_robots(caller: Any) -> Answer:
         online = sum(robot["status"]["online"] for robot in robots)
         text += f"\nSummary: {len(robots)} idle robots ({online} online)\n"
     return text, {"robots": robots}
+
+
+@tool(
+    name="list_stations",
+    description="Chargers and parking stations: where each is, which robot types it serves, its capacity "
+    "and the robots holding it.",
+    annotations=READS,
+)
+def list_stations(
+    caller: Any,
+    kind: Annotated[StationKindName | None, Field(description="Only CHARGER or PARKING stations.")] = None,
+) -> Answer:
+    stations = api_json(StationSerializer(station_list(filters=_query(kind=kind)), many=True).data)
+    return _listing("Stations", stations, station_text, "No stations."), {"stations": stations}
 
 
 @tool(

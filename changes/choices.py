@@ -4,3 +4,4 @@ from django.db import models
 class ChangeKind(models.TextChoices):
     ROBOT = "robot"
     MISSION = "mission"
+    STATION = "station"

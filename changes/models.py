@@ -1,6 +1,6 @@
-"""The change feed: one row per write of a robot or mission row, written by a trigger in the writing
-transaction (migration 0001), whatever wrote it (the ORM, the step's plain SQL, the bridge's flush, the
-admin). README "Watch streams" and docs/change-feed.md say why it is built this way."""
+"""The change feed: one row per write of a robot, mission or station row, written by a trigger in the
+writing transaction (migrations 0001, 0003, 0005), whatever wrote it (the ORM, the step's plain SQL, the
+bridge's flush, the admin). README "Watch streams" and docs/change-feed.md say why it is built this way."""
 
 from django.db import models
 
@@ -8,8 +8,8 @@ from changes.choices import ChangeKind
 
 
 class Change(models.Model):
-    """A robot's or mission's row as one committed transaction left it (`image`, its columns as JSON;
-    a deleted row's last image with lifecycle DELETED).
+    """A robot's, mission's or station's row as one committed transaction left it (`image`, its columns as
+    JSON; a deleted row's last image with lifecycle DELETED).
 
     `xid` is the writing transaction's id: a reader knows which changes it has seen by the snapshot it
     read them in (a transaction's changes all become visible at its commit), not by `id`, which is taken

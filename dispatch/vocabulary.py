@@ -12,11 +12,13 @@ from enum import StrEnum
 __all__ = [
     "DEFAULT_NOTIFY_TIMEOUT",
     "DONE_STATES",
+    "AgvClass",
     "FailureCategory",
     "Lifecycle",
     "MissionState",
     "NodeKind",
     "RobotState",
+    "StationKind",
 ]
 
 
@@ -75,3 +77,22 @@ class Lifecycle(StrEnum):
     ALIVE = "ALIVE"
     PENDING_DELETE = "PENDING_DELETE"
     DELETED = "DELETED"
+
+
+class AgvClass(StrEnum):
+    """A robot's type: VDA 5050 factsheet `typeSpecification.agvClass` (a robot's `robot_type`, the types a
+    station serves)."""
+
+    FORKLIFT = "FORKLIFT"
+    CONVEYOR = "CONVEYOR"
+    TUGGER = "TUGGER"
+    CARRIER = "CARRIER"
+    MANIPULATOR = "MANIPULATOR"
+    HUMANOID = "HUMANOID"
+
+
+class StationKind(StrEnum):
+    """What a station is for: robots charge at a CHARGER and wait at a PARKING station."""
+
+    CHARGER = "CHARGER"
+    PARKING = "PARKING"

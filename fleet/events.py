@@ -1,5 +1,6 @@
-"""GET /events: robots' and missions' changes as server-sent events (README "Watching the fleet"). It
-shows both apps' objects, so it lives beside the URLconf; the stream itself is changes.views'."""
+"""GET /events: robots', missions' and stations' changes as server-sent events (README "Watching the
+fleet"). It shows several apps' objects, so it lives beside the URLconf; the stream itself is
+changes.views'."""
 
 from django.http import HttpResponse
 from drf_spectacular.utils import extend_schema
@@ -9,6 +10,7 @@ from rest_framework.views import APIView
 from changes.views import AnyAccept, events_response
 from missions.api.views import MISSIONS
 from robots.api.views import ROBOTS
+from stations.api.views import STATIONS
 
 
 class EventsView(APIView):
@@ -18,4 +20,4 @@ class EventsView(APIView):
     # wait on it forever).
     @extend_schema(exclude=True)
     def get(self, request: Request) -> HttpResponse:
-        return events_response(request, [ROBOTS, MISSIONS])
+        return events_response(request, [ROBOTS, MISSIONS, STATIONS])

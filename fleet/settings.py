@@ -90,6 +90,7 @@ INSTALLED_APPS = [
     "access",
     "robots",
     "missions",
+    "stations",
     "changes",
     "workers",
     "agents",
@@ -202,7 +203,7 @@ SPECTACULAR_SETTINGS = {
     # and the 401/403 answers of the operations that need credentials.
     "POSTPROCESSING_HOOKS": [
         "drf_spectacular.hooks.postprocess_schema_enums",
-        "robots.api.serializers.schema_constraints",
+        "kit.api.schema.names_constraints",
         "missions.api.serializers.schema_constraints",
         "access.schema.add_auth_responses",
     ],
@@ -210,6 +211,7 @@ SPECTACULAR_SETTINGS = {
         "RobotStateEnum": "robots.choices.RobotState",
         "MissionStateEnum": "missions.choices.MissionState",
         "SettingSourceEnum": "robots.choices.SettingSource",
+        "AgvClassEnum": "robots.choices.AgvClass",
     },
 }
 

@@ -18,4 +18,5 @@ urlpatterns = [
     path("events", EventsView.as_view(), name="events"),
     path("", include("robots.api.urls")),
     path("", include("missions.api.urls")),
+    path("", include("stations.api.urls")),
 ]

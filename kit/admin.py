@@ -1,13 +1,15 @@
 """What every app's admin shares: its writes go through the app's services, and what a service refuses
 (a UsageError) is shown to the operator as a message, not as a server error."""
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any, TypeVar
 
+from django import forms
 from django.contrib import admin, messages
 from django.contrib.admin.utils import model_ngettext
 from django.db.models import Model
 from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
+from rest_framework import serializers
 
 from kit.api.errors import UsageError
 
@@ -53,6 +55,38 @@ def delete_through_service(
         modeladmin.message_user(
             request, f"PENDING_DELETE until {until}: {', '.join(remaining)}.", messages.INFO
         )
+
+
+def serializer_errors(errors: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...], str]]:
+    """A DRF error tree as (path, message) pairs, e.g. (("battery", "critical_level"), "Must be ...")."""
+    if isinstance(errors, Mapping):
+        for key, value in errors.items():
+            yield from serializer_errors(value, (*path, str(key)))
+    elif isinstance(errors, list):
+        for error in errors:
+            yield from serializer_errors(error, path)
+    else:
+        yield path, str(errors)
+
+
+def spec_validated(
+    form: forms.ModelForm, serializer_class: type[serializers.Serializer], spec: Mapping[str, Any]
+) -> dict[str, Any]:
+    """`spec` checked by the API's own spec serializer, so that an admin form accepts exactly what the API
+    accepts: its validated data, or {} with each error added to the form field it names (by its path
+    joined with "_", or its first step), else to the whole form."""
+    serializer = serializer_class(data=spec)
+    valid = serializer.is_valid()
+    for path, message in serializer_errors(serializer.errors):
+        field = next((name for name in ("_".join(path), path[0]) if name in form.fields), None)
+        form.add_error(field, message if field else f"{'.'.join(path)}: {message}")
+    return serializer.validated_data if valid else {}
+
+
+def pose_text(obj: Any) -> str:
+    """An object's pose columns (pose_x, pose_y, pose_theta, pose_map_id) as one short text."""
+    where = f" @ {obj.pose_map_id}" if obj.pose_map_id else ""
+    return f"({obj.pose_x:.2f}, {obj.pose_y:.2f}, {obj.pose_theta:.2f}){where}"
 
 
 class ServiceAdmin(admin.ModelAdmin):

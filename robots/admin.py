@@ -1,7 +1,7 @@
 """Operator view of robots: the spec is editable, the status is what the robot reports; creating, deleting
 and teleop go through the same services as the API."""
 
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from django import forms
@@ -14,7 +14,14 @@ from django.utils.html import format_html, format_html_join
 from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
-from kit.admin import ServiceAdmin, call_service_for_each, delete_through_service
+from kit.admin import (
+    ServiceAdmin,
+    call_service_for_each,
+    delete_through_service,
+    pose_text,
+    serializer_errors,
+    spec_validated,
+)
 from kit.api.names import object_name_validator
 from robots.api.serializers import MapActionRequestSerializer, RobotSpecSerializer, RobotVda5050Serializer
 from robots.choices import MapAction, SettingSource, TeleopAction
@@ -70,18 +77,6 @@ def robot_spec(values: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def serializer_errors(errors: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...], str]]:
-    """A DRF error tree as (path, message) pairs, e.g. (("battery", "critical_level"), "Must be ...")."""
-    if isinstance(errors, Mapping):
-        for key, value in errors.items():
-            yield from serializer_errors(value, (*path, str(key)))
-    elif isinstance(errors, list):
-        for error in errors:
-            yield from serializer_errors(error, path)
-    else:
-        yield path, str(errors)
-
-
 def vda5050_spec(robot: Robot) -> dict[str, Any]:
     """The robot's VDA 5050 spec as the API takes it: its identity and the protocol settings an operator
     chose (a learned or default one stays what it is, see `robots.services`)."""
@@ -116,12 +111,7 @@ class RobotAdminForm(forms.ModelForm):
         spec = robot_spec({**model_to_dict(self.instance, fields=SPEC_FIELDS), **cleaned_data})
         if not self.instance._state.adding:
             spec["vda5050"] = vda5050_spec(self.instance)
-        serializer = RobotSpecSerializer(data=spec)
-        if serializer.is_valid():
-            self.spec = serializer.validated_data
-        for path, message in serializer_errors(serializer.errors):
-            field = next((name for name in ("_".join(path), path[0]) if name in self.fields), None)
-            self.add_error(field, message if field else f"{'.'.join(path)}: {message}")
+        self.spec = spec_validated(self, RobotSpecSerializer, spec)
         return cleaned_data
 
 
@@ -171,8 +161,7 @@ class RobotAdmin(ServiceAdmin):
 
     @admin.display(description="pose")
     def pose(self, robot: Robot) -> str:
-        where = f" @ {robot.pose_map_id}" if robot.pose_map_id else ""
-        return f"({robot.pose_x:.2f}, {robot.pose_y:.2f}, {robot.pose_theta:.2f}){where}"
+        return pose_text(robot)
 
     @admin.display(description="maps")
     def maps_reported(self, robot: Robot) -> SafeString | str:

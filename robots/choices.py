@@ -1,4 +1,5 @@
-"""Enumerations of the robots app, spelled as in the reference API.
+"""Enumerations of the robots app, spelled as in the reference API (``Lifecycle`` and ``AgvClass`` are the
+kit's, which stations share).
 
 ``Lifecycle`` and ``RobotState`` are the vocabulary's (``dispatch.vocabulary``) as Django choices: the
 vocabulary enum's names and values, and labels derived from the names as Django does.
@@ -7,10 +8,12 @@ vocabulary enum's names and values, and labels derived from the names as Django 
 from django.db import models
 
 from dispatch import vocabulary
+from kit.choices import AgvClass as AgvClass
+from kit.choices import Lifecycle as Lifecycle
+from kit.choices import vocabulary_choices
 from vda5050.versions import SUPPORTED_VERSIONS
 
-Lifecycle = models.TextChoices("Lifecycle", [(m.name, m.value) for m in vocabulary.Lifecycle])
-RobotState = models.TextChoices("RobotState", [(m.name, m.value) for m in vocabulary.RobotState])
+RobotState = vocabulary_choices(vocabulary.RobotState)
 
 
 class TeleopAction(models.TextChoices):
@@ -25,17 +28,6 @@ class MapAction(models.TextChoices):
     DOWNLOAD = "downloadMap", "downloadMap"
     ENABLE = "enableMap", "enableMap"
     DELETE = "deleteMap", "deleteMap"
-
-
-class AgvClass(models.TextChoices):
-    """VDA 5050 factsheet `typeSpecification.agvClass`, filtered on as `robot_type`."""
-
-    FORKLIFT = "FORKLIFT"
-    CONVEYOR = "CONVEYOR"
-    TUGGER = "TUGGER"
-    CARRIER = "CARRIER"
-    MANIPULATOR = "MANIPULATOR"
-    HUMANOID = "HUMANOID"
 
 
 # The VDA 5050 versions a robot may speak (V2_0_0 = "2.0.0", ...), labelled as spelled.

@@ -1,69 +1,15 @@
 """Query filters of GET /robot: typed, validated, and combined with AND."""
 
-from typing import Any
-
 import django_filters as filters
-from django import forms
 from django.conf import settings
 from django.db.models import QuerySet
 
-from kit.api.filters import StrictFilterSet
+from kit.api.filters import FloatFilter, StrictBooleanFilter, StrictFilterSet, ValuesInFilter
 from robots.choices import AgvClass, RobotState
 from robots.models import Robot
 
 # The README's robot types (reference 3.2.0) and the agv_class each stands for.
 LEGACY_ROBOT_TYPES = {"ARM": AgvClass.FORKLIFT, "AMR": AgvClass.CARRIER}
-
-TRUE_WORDS = frozenset({"true", "1", "yes", "on"})
-FALSE_WORDS = frozenset({"false", "0", "no", "off"})
-
-
-class StrictBooleanField(forms.Field):
-    """A query boolean that refuses what it cannot read, where Django's would silently ignore the filter."""
-
-    def to_python(self, value: Any) -> bool | None:
-        if value in self.empty_values:
-            return None
-        word = str(value).strip().lower()
-        if word in TRUE_WORDS:
-            return True
-        if word in FALSE_WORDS:
-            return False
-        raise forms.ValidationError("Must be true or false.", code="invalid")
-
-
-class StrictBooleanFilter(filters.BooleanFilter):
-    field_class = StrictBooleanField
-
-
-class AnyValueMultipleField(forms.MultipleChoiceField):
-    """A repeated query parameter (`?names=a&names=b`) whose values are not limited to a list of choices,
-    at most FLEET_API_MAX_FILTER_VALUES of them."""
-
-    def valid_value(self, value: str) -> bool:
-        return True
-
-    def validate(self, value: list[str]) -> None:
-        super().validate(value)
-        if len(value) > settings.API_MAX_FILTER_VALUES:
-            raise forms.ValidationError(
-                f"At most {settings.API_MAX_FILTER_VALUES} values, not {len(value)}.", code="max_length"
-            )
-
-
-class ValuesInFilter(filters.MultipleChoiceFilter):
-    """Keeps the objects whose field equals one of the repeated parameter's values."""
-
-    field_class = AnyValueMultipleField
-
-    def filter(self, qs: QuerySet, value: list[str]) -> QuerySet:
-        return qs.filter(**{f"{self.field_name}__in": value}) if value else qs
-
-
-class FloatFilter(filters.NumberFilter):
-    """A number filter on a float column: finite floats, not Decimals."""
-
-    field_class = forms.FloatField
 
 
 class RobotFilter(StrictFilterSet):

@@ -49,6 +49,8 @@ class ActionSpec:
 
 NODE_SCOPES = (ActionScope.NODE, ActionScope.EDGE)
 INSTANT_SCOPE = (ActionScope.INSTANT,)
+# Charging (VDA 5050's predefined actions), only by robots that can charge (the factsheet lists them then).
+CHARGING_ACTIONS = frozenset({ActionType.START_CHARGING, ActionType.STOP_CHARGING})
 # What every map action (downloadMap, enableMap, deleteMap) names.
 MAP_PARAMETERS = (
     ParameterSpec(MAP_ID, ValueDataType.STRING, "the map"),
@@ -82,6 +84,12 @@ ACTION_SPECS: tuple[ActionSpec, ...] = (
         ),
     ),
     ActionSpec(ActionType.DROP, "Drops every load (takes 1 s).", NODE_SCOPES),
+    ActionSpec(
+        ActionType.START_CHARGING,
+        "Starts charging: the battery rises until it is full, the robot drives off, or stopCharging.",
+        (ActionScope.INSTANT, ActionScope.NODE),
+    ),
+    ActionSpec(ActionType.STOP_CHARGING, "Stops charging.", (ActionScope.INSTANT, ActionScope.NODE)),
     ActionSpec(ActionType.CANCEL_ORDER, "Stops and drops the current order.", INSTANT_SCOPE),
     ActionSpec(ActionType.START_PAUSE, "Stops driving until stopPause.", INSTANT_SCOPE),
     ActionSpec(ActionType.STOP_PAUSE, "Resumes after startPause.", INSTANT_SCOPE),
@@ -148,7 +156,12 @@ class ClearLoads:
     pass
 
 
-Effect = SetMap | SetLoad | ClearLoads
+@dataclass(frozen=True)
+class SetCharging:
+    charging: bool
+
+
+Effect = SetMap | SetLoad | ClearLoads | SetCharging
 
 
 @dataclass(frozen=True)
@@ -194,9 +207,13 @@ class ActionRun:
         )
 
 
-def plan_order_action(action: Action, instant: bool) -> ActionPlan:
+def plan_order_action(action: Action, instant: bool, *, can_charge: bool) -> ActionPlan:
     """What a node/edge action will do; raises UnusableAction if the robot cannot do it."""
     parameters = parameters_of(action)
+    if action.action_type in CHARGING_ACTIONS and can_charge:
+        starts = action.action_type == ActionType.START_CHARGING
+        result = "charging" if starts else "charging stopped"
+        return ActionPlan(0.0, result=result, effects=(SetCharging(starts),))
     match action.action_type:
         case VendorAction.DUMMY_ACTION:
             should_fail = as_bool(require(parameters, "should_fail"), "should_fail")

@@ -10,6 +10,8 @@ import time
 from pathlib import Path
 
 from simulator.config import (
+    DEFAULT_BATTERY_DRAIN,
+    DEFAULT_CHARGE_RATE,
     DEFAULT_INTERFACE_NAME,
     ROBOT_SPEC_FIELDS,
     Credentials,
@@ -74,6 +76,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--speed", type=float, default=1.0, help="m/s (and rad/s turning); 0 = --instant")
     parser.add_argument("--tick_period", type=float, default=0.25, help="s between motion steps")
     parser.add_argument("--instant", action="store_true", help="complete every order at once (benchmarks)")
+    parser.add_argument(
+        "--battery_drain",
+        type=float,
+        default=DEFAULT_BATTERY_DRAIN,
+        help="percent of battery per metre driven, of robots whose spec gives none",
+    )
+    parser.add_argument(
+        "--charge_rate",
+        type=float,
+        default=DEFAULT_CHARGE_RATE,
+        help="percent per second while charging, of robots whose spec gives none; 0: no robot charges",
+    )
     parser.add_argument(
         "--fail_as_warning",
         action="store_true",
@@ -173,8 +187,10 @@ def topic_address(config: RobotConfig, args: argparse.Namespace) -> RobotAddress
 
 
 def settings_from(args: argparse.Namespace) -> SimulationSettings:
-    if args.speed < 0 or args.tick_period <= 0 or args.state_period <= 0 or args.visualization_period < 0:
-        raise ValueError("--speed, --visualization_period must be >= 0; --tick_period, --state_period > 0")
+    if min(args.speed, args.visualization_period, args.battery_drain, args.charge_rate) < 0:
+        raise ValueError("--speed, --visualization_period, --battery_drain, --charge_rate must be >= 0")
+    if args.tick_period <= 0 or args.state_period <= 0:
+        raise ValueError("--tick_period, --state_period must be > 0")
     return SimulationSettings(
         speed=args.speed,
         tick_period=args.tick_period,
@@ -183,6 +199,8 @@ def settings_from(args: argparse.Namespace) -> SimulationSettings:
         fail_as_warning=args.fail_as_warning,
         version=args.vda_version,
         instant=args.instant,
+        battery_drain=args.battery_drain,
+        charge_rate=args.charge_rate,
     )
 
 

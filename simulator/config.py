@@ -10,11 +10,15 @@ from vda5050.versions import SUPPORTED_VERSIONS
 
 DEFAULT_MAP_ID = "map"
 DEFAULT_BATTERY = 20.0
+# Percent per metre driven: 100 % to 20 % in 160 m, under three minutes of driving at 1 m/s.
+DEFAULT_BATTERY_DRAIN = 0.5
+# Percent per second while charging: 20 % to 100 % in 40 s.
+DEFAULT_CHARGE_RATE = 2.0
 DEFAULT_MANUFACTURER = "RobotCompany"
 DEFAULT_INTERFACE_NAME = "uagv"
 ROBOT_SPEC_FIELDS = (
     "name,x,y[,theta[,map_id[,failure_period[,battery[,manufacturer[,serial_number[,robot_type"
-    "[,vda_version[,stack]]]]]]]]]]"
+    "[,vda_version[,stack[,battery_drain[,charge_rate]]]]]]]]]]]]"
 )
 
 
@@ -59,6 +63,13 @@ class RobotConfig:
     robot_type: RobotType = RobotType.CARRIER
     vda_version: str = ""  # empty: the simulation's --vda_version
     stack: Stack = Stack.STRICT
+    battery_drain: float | None = None  # percent per metre driven; None: the simulation's
+    charge_rate: float | None = None  # percent per second charging; 0: cannot charge; None: the simulation's
+
+    def battery_rates(self, settings: SimulationSettings) -> tuple[float, float]:
+        """Its battery drain (percent per metre) and charge rate (percent per second; 0: cannot charge)."""
+        drain = settings.battery_drain if self.battery_drain is None else self.battery_drain
+        return drain, settings.charge_rate if self.charge_rate is None else self.charge_rate
 
     @property
     def serial(self) -> str:
@@ -77,6 +88,8 @@ class SimulationSettings:
     fail_as_warning: bool = False
     version: str = "2.0.0"
     instant: bool = False  # every order completes at once; implied by speed 0
+    battery_drain: float = DEFAULT_BATTERY_DRAIN  # of robots whose spec gives none
+    charge_rate: float = DEFAULT_CHARGE_RATE  # of robots whose spec gives none
 
     @property
     def completes_instantly(self) -> bool:
@@ -117,15 +130,25 @@ def parse_credentials(text: str) -> dict[str, Credentials]:
 def parse_robot_spec(spec: str) -> RobotConfig:
     """``carter01,4,5`` or ``carter02,9,9,3.14,map,3,80,Acme,sn-2,MANIPULATOR,3.0.0`` -> RobotConfig."""
     fields = [field.strip() for field in spec.split(",")]
-    if len(fields) < 3 or len(fields) > 12:
+    if len(fields) < 3 or len(fields) > 14:
         raise ValueError(f"robot spec {spec!r} must be {ROBOT_SPEC_FIELDS}")
     name, x, y, *optional = fields
     if not name:
         raise ValueError(f"robot spec {spec!r} has no name")
-    optional += [""] * (9 - len(optional))
-    theta, map_id, failure_period, battery, manufacturer, serial_number, robot_type, vda_version, stack = (
-        optional
-    )
+    optional += [""] * (11 - len(optional))
+    (
+        theta,
+        map_id,
+        failure_period,
+        battery,
+        manufacturer,
+        serial_number,
+        robot_type,
+        vda_version,
+        stack,
+        battery_drain,
+        charge_rate,
+    ) = optional
     config = RobotConfig(
         name=name,
         x=_finite(x, "x", spec),
@@ -139,6 +162,8 @@ def parse_robot_spec(spec: str) -> RobotConfig:
         robot_type=RobotType(robot_type.upper()) if robot_type else RobotType.CARRIER,
         vda_version=vda_version,
         stack=Stack(stack) if stack else Stack.STRICT,
+        battery_drain=_finite(battery_drain, "battery_drain", spec) if battery_drain else None,
+        charge_rate=_finite(charge_rate, "charge_rate", spec) if charge_rate else None,
     )
     if vda_version and vda_version not in SUPPORTED_VERSIONS:
         raise ValueError(f"robot spec {spec!r}: vda_version must be one of {', '.join(SUPPORTED_VERSIONS)}")
@@ -146,6 +171,8 @@ def parse_robot_spec(spec: str) -> RobotConfig:
         raise ValueError(f"robot spec {spec!r}: failure_period must be >= 0")
     if not 0 <= config.battery <= 100:
         raise ValueError(f"robot spec {spec!r}: battery must be a percentage")
+    if any(rate is not None and rate < 0 for rate in (config.battery_drain, config.charge_rate)):
+        raise ValueError(f"robot spec {spec!r}: battery_drain and charge_rate must be >= 0")
     return config
 
 

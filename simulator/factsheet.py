@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from simulator.actions import ACTION_SPECS
+from simulator.actions import ACTION_SPECS, CHARGING_ACTIONS
 from simulator.config import RobotConfig, RobotType, SimulationSettings
 from vda5050.models import (
     AgvAction,
@@ -43,6 +43,7 @@ def factsheet_content(config: RobotConfig, settings: SimulationSettings, version
     """A complete factsheet of ``version``; in 2.x, MANIPULATOR/HUMANOID get a placeholder agvClass (see
     PLACEHOLDER_CLASS); 3.0's class is free text."""
     is_3 = major_of(version) >= MAJOR_3
+    charges = config.battery_rates(settings)[1] > 0  # else it lists no startCharging/stopCharging
     standard_classes = {agv_class.value for agv_class in AgvClass}
     agv_class: AgvClass | str = (
         AgvClass(config.robot_type.value)
@@ -106,6 +107,7 @@ def factsheet_content(config: RobotConfig, settings: SimulationSettings, version
                     cancel_allowed=True if is_3 else None,
                 )
                 for spec in ACTION_SPECS
+                if charges or spec.action_type not in CHARGING_ACTIONS
             ],
         ),
         agv_geometry=AgvGeometry(),

@@ -14,6 +14,7 @@ import orjson
 
 from simulator.acceptance import check_addressee
 from simulator.actions import ActionRun, UnusableAction, VendorAction, as_number, parameters_of, require
+from simulator.battery import Battery
 from simulator.config import RobotConfig, Stack
 from simulator.errors import (
     ACTION_ERROR,
@@ -63,6 +64,7 @@ class InstantActionHandler:
     drive: Drive
     errors: ErrorReport
     outbox: Outbox
+    battery: Battery
 
     def receive(self, payload: bytes, now: float) -> None:
         if self.config.stack == Stack.VDA_5050_LIB_1_4 and not _has_key(payload, LEGACY_INSTANT_ACTIONS_KEY):
@@ -100,6 +102,12 @@ class InstantActionHandler:
                 self._init_position(run)
             case ActionType.DOWNLOAD_MAP | ActionType.ENABLE_MAP | ActionType.DELETE_MAP if self.has_maps:
                 self.maps.act(run, now)
+            case ActionType.START_CHARGING if self.battery.can_charge:
+                self.battery.start_charging(now)
+                run.finish("charging" if self.battery.charging else "full")
+            case ActionType.STOP_CHARGING if self.battery.can_charge:
+                self.battery.stop_charging(now)
+                run.finish("charging stopped")
             case action_type if action_type in SWITCH_RESULTS:
                 self._switch(action_type, now)
                 run.finish(SWITCH_RESULTS[action_type])

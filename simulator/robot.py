@@ -15,16 +15,20 @@ and edges and fails the actions not done; the error stays until the next order i
 
 from __future__ import annotations
 
+import math
+
 from simulator.acceptance import OrderAcceptance
 from simulator.actions import (
     ActionRun,
     ClearLoads,
     Effect,
+    SetCharging,
     SetLoad,
     SetMap,
     UnusableAction,
     plan_order_action,
 )
+from simulator.battery import Battery
 from simulator.config import DEFAULT_INTERFACE_NAME, RobotConfig, SimulationSettings
 from simulator.errors import ACTION_ERROR, ErrorReport
 from simulator.instant import InstantActionHandler
@@ -84,7 +88,10 @@ class SimulatedRobot:
             config.map_id, has_maps=self.has_maps, settings=settings, errors=errors, outbox=outbox
         )
         order = CurrentOrder(outbox)
+        drain, charge_rate = config.battery_rates(settings)
+        battery = Battery(charge=config.battery, drain_per_metre=drain, charge_rate=charge_rate)
         self._outbox = outbox
+        self._battery = battery
         self._errors = errors
         self._drive = drive
         self._maps = maps
@@ -103,6 +110,7 @@ class SimulatedRobot:
             drive=drive,
             errors=errors,
             outbox=outbox,
+            battery=battery,
         )
 
     # --- the runner's interface --------------------------------------------------------------------
@@ -168,7 +176,7 @@ class SimulatedRobot:
             loads=list(self._loads),
             action_states=[run.to_state() for run in runs if not (self.is_3 and run.instant)],
             instant_action_states=[run.to_state() for run in runs if run.instant] if self.is_3 else None,
-            battery_state=BatteryState(battery_charge=self.config.battery, charging=False),
+            battery_state=BatteryState(battery_charge=self._battery.charge, charging=self._battery.charging),
             errors=list(self._errors.errors),
             information=[],
             safety_state=SafetyState(e_stop=EStop.NONE, field_violation=False),
@@ -183,6 +191,8 @@ class SimulatedRobot:
         order = self._order
         drive = self._drive
         self._maps.finish_downloads(now)
+        if self._battery.charging and self._battery.charge_until(now):
+            self._outbox.state_changed = True  # full: charging ended
         start = drive.pose
         moved = False
         while True:
@@ -191,7 +201,7 @@ class SimulatedRobot:
                 if run.ends_at is None or now < run.ends_at:
                     break
                 order.running = None
-                self._finish(run)
+                self._finish(run, now)
                 continue
             if drive.paused:
                 break
@@ -211,6 +221,8 @@ class SimulatedRobot:
                 continue
             if drive.teleop or not may_move or (moved and not instant):
                 break
+            if self._battery.charging:  # driving off the charger
+                self._battery.stop_charging(now)
             drive.pose = (
                 jump_to(drive.pose, target)
                 if instant
@@ -219,6 +231,8 @@ class SimulatedRobot:
             moved = True
         if may_move:  # a message between two ticks neither starts nor stops driving
             drive.set_motion(start, driving=moved and not instant)
+        if moved:
+            self._battery.drive(math.hypot(drive.pose.x - start.x, drive.pose.y - start.y))
 
     def _start(self, action_id: str, now: float) -> None:
         run = self._order.runs.get(action_id)
@@ -226,7 +240,9 @@ class SimulatedRobot:
             return
         self._outbox.state_changed = True
         try:
-            plan = plan_order_action(run.action, self.settings.completes_instantly)
+            plan = plan_order_action(
+                run.action, self.settings.completes_instantly, can_charge=self._battery.can_charge
+            )
         except UnusableAction as exc:
             self._action_failed(run, str(exc))
             return
@@ -235,7 +251,7 @@ class SimulatedRobot:
         run.ends_at = None if plan.duration is None else now + plan.duration
         self._order.running = action_id
 
-    def _finish(self, run: ActionRun) -> None:
+    def _finish(self, run: ActionRun, now: float) -> None:
         plan = run.plan
         assert plan is not None  # only started actions run
         self._outbox.state_changed = True
@@ -243,7 +259,7 @@ class SimulatedRobot:
             self._action_failed(run, plan.result)
             return
         for effect in plan.effects:
-            self._apply(effect)
+            self._apply(effect, now)
         run.finish(plan.result)
 
     def _action_failed(self, run: ActionRun, reason: str) -> None:
@@ -258,8 +274,12 @@ class SimulatedRobot:
         self._order.drop(ACTION_FAILURE)
         self._drive.stop()
 
-    def _apply(self, effect: Effect) -> None:
+    def _apply(self, effect: Effect, now: float) -> None:
         match effect:
+            case SetCharging(charging=True):
+                self._battery.start_charging(now)
+            case SetCharging(charging=False):
+                self._battery.stop_charging(now)
             case SetMap(map_id=map_id):
                 self._maps.localize_on(map_id)
             case SetLoad(load_id=load_id, load_type=load_type):
@@ -291,3 +311,4 @@ class SimulatedRobot:
         return AgvPosition(
             x=pose.x, y=pose.y, theta=pose.theta, map_id=self._maps.map_id, position_initialized=True
         )
+

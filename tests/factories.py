@@ -1,4 +1,4 @@
-"""Factories for robots and missions, in the shapes the API and the dispatch engine store them."""
+"""Factories for robots, missions and stations, in the shapes the API and the dispatch engine store them."""
 
 from typing import Any
 
@@ -9,6 +9,8 @@ from dispatch.engine import initial_node_status, parse_tree
 from missions.choices import FailureCategory, MissionState
 from missions.models import Mission
 from robots.models import Robot
+from stations.choices import StationKind
+from stations.models import Station
 
 # Who the tests' direct service calls are recorded as (WriteRecord.actor).
 TEST_ACTOR = "test"
@@ -22,6 +24,16 @@ class RobotFactory(factory.django.DjangoModelFactory):
 
     name = factory.Sequence(lambda number: f"robot{number:03d}")
     serial_number = factory.SelfAttribute("name")
+
+
+class StationFactory(factory.django.DjangoModelFactory):
+    """A charger for any robot, at the origin of no map."""
+
+    class Meta:
+        model = Station
+
+    name = factory.Sequence(lambda number: f"station{number:03d}")
+    kind = StationKind.CHARGER
 
 
 def route_node(name: str, *waypoints: tuple[float, float], parent: str = "root") -> dict[str, Any]:

@@ -1,6 +1,8 @@
-"""OpenAPI pieces every view shares: the documented error bodies and examples."""
+"""OpenAPI pieces every view shares: the documented error bodies and examples, the list filters' bounds."""
 
+from typing import Any
 
+from django.conf import settings
 from drf_spectacular.utils import (
     OpenApiExample,
     OpenApiResponse,
@@ -63,3 +65,14 @@ SCHEMA_ERROR_EXAMPLE = OpenApiExample(
     response_only=True,
     status_codes=["400"],
 )
+
+
+def names_constraints(result: dict, generator: Any, request: Any, public: bool) -> dict:
+    """drf-spectacular hook: what every list's `names` filter (kit.api.filters.ValuesInFilter) enforces but
+    cannot state itself: how many names a list may ask for, none empty or with a NUL."""
+    for operations in result["paths"].values():
+        for parameter in operations.get("get", {}).get("parameters", []):
+            if parameter["name"] == "names":
+                parameter["schema"].update(maxItems=settings.API_MAX_FILTER_VALUES)
+                parameter["schema"]["items"].update(minLength=1, pattern="^[^\\u0000]*$")
+    return result

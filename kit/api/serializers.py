@@ -98,13 +98,18 @@ class ObjectNameSerializer(serializers.Serializer):
     )
 
 
-class Pose2DSerializer(StrictSerializer):
-    """A 2D pose on a map: a route waypoint, or where a robot is."""
+class PoseSerializer(StrictSerializer):
+    """A 2D pose on a map: where a robot or a station is."""
 
     x = NumberField(default=0.0, help_text="x coordinate in metres.")
     y = NumberField(default=0.0, help_text="y coordinate in metres.")
     theta = NumberField(default=0.0, help_text="Orientation in radians.")
     map_id = JsonStringField(default="", allow_blank=True, help_text="Map the pose is on.")
+
+
+class Pose2DSerializer(PoseSerializer):
+    """A pose a robot is sent to (a route waypoint) or is at, with how far from it it may stop."""
+
     allowedDeviationXY = NumberField(
         default=DEFAULT_ALLOWED_DEVIATION_XY,
         min_value=0.0,

@@ -106,16 +106,6 @@ class RobotCreateSerializer(ObjectNameSerializer, RobotSpecSerializer):
     """A robot's spec plus the name (or name prefix) of the new robot."""
 
 
-def schema_constraints(result: dict, generator: Any, request: Any, public: bool) -> dict:
-    """drf-spectacular hook: what the robot filters enforce but cannot state themselves: how many `names`
-    a list may ask for, none empty or with a NUL."""
-    for parameter in result["paths"]["/robot"]["get"]["parameters"]:
-        if parameter["name"] == "names":
-            parameter["schema"].update(maxItems=settings.API_MAX_FILTER_VALUES)
-            parameter["schema"]["items"].update(minLength=1, pattern="^[^\\u0000]*$")
-    return result
-
-
 class TeleopQuerySerializer(serializers.Serializer):
     params = serializers.ChoiceField(choices=TeleopAction.choices, help_text="START or STOP teleop.")
 

@@ -14,9 +14,10 @@ from access.services import api_token_create, api_token_revoke
 from fleet.serving import STREAM_PATHS
 from missions.models import Mission
 from robots.models import Robot
+from stations.models import Station
 from tests.access.endpoints import PUBLIC_PATHS, Endpoint, endpoints
 from tests.conftest import authenticated_client
-from tests.factories import MissionFactory, RobotFactory
+from tests.factories import MissionFactory, RobotFactory, StationFactory
 
 pytestmark = pytest.mark.django_db
 
@@ -33,6 +34,8 @@ WRITE_BODIES = {
     "POST /mission": {"name": "acc2", "robot": NAME, "mission_tree": [{"name": "c", "constant": {}}]},
     "POST /mission/acc1/update": {},
     "POST /robot/acc1/map": {"action": "enableMap", "map_id": "warehouse", "map_version": "1"},
+    "POST /station": {"name": "acc2", "kind": "PARKING", "pose": {}},
+    "PUT /station/acc1": {"kind": "PARKING", "pose": {}},
 }
 WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 
@@ -41,6 +44,7 @@ WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 def objects() -> None:
     RobotFactory(name=NAME, protocol_version="2.1.0")  # a robot with maps
     MissionFactory(name=NAME, robot=NAME)
+    StationFactory(name=NAME)
 
 
 def answered(endpoint: Endpoint) -> int:
@@ -78,6 +82,12 @@ def test_the_walk_finds_every_endpoint_of_the_reference_and_ours():
         "GET /robot/watch",
         "GET /mission/watch",
         "GET /events",
+        "GET /station",
+        "POST /station",
+        "GET /station/acc1",
+        "PUT /station/acc1",
+        "DELETE /station/acc1",
+        "GET /station/watch",
     }
     assert {endpoint.path for endpoint in PUBLIC} == PUBLIC_PATHS
 
@@ -127,6 +137,7 @@ def test_a_read_only_token_may_not_write(endpoint):
     assert not WriteRecord.objects.exists()
     assert Robot.objects.get(name=NAME).heartbeat_timeout != 10
     assert Mission.objects.filter(name=NAME).exists()
+    assert Station.objects.get(name=NAME).kind == "CHARGER"
 
 
 @pytest.mark.parametrize("endpoint", READS, ids=str)

@@ -30,6 +30,7 @@ MORE_TOOLS = {
     "update_route",
     "create_mission",
     "get_mission",
+    "list_stations",
 }
 
 
@@ -96,6 +97,11 @@ def test_reference_tools_answer_what_rest_answers(mcp, api, unique):
     assert failures.structuredContent == {"missions": api.get("/mission?state=FAILED").json()[::-1]}
     assert late in text(failures)
     assert mcp.ok("get_idle_robots").structuredContent == {"robots": api.get("/robot?state=IDLE").json()}
+    charger = unique("charger")
+    api.post("/station", {"name": charger, "kind": "CHARGER", "pose": {"x": 1.5}}, format="json")
+    chargers = mcp.ok("list_stations", kind="CHARGER")
+    assert chargers.structuredContent == {"stations": api.get("/station?kind=CHARGER").json()}
+    assert charger in text(chargers)
     assert mcp.ok("get_robots_on_missions").structuredContent == {
         "robots": api.get("/robot?state=ON_TASK").json(),
         "missions": [],

@@ -15,6 +15,8 @@ from missions.models import Mission
 from missions.robot_step import robot_step
 from missions.services import mission_orders_accepted
 from robots.models import Robot
+from stations.models import Station
+from tests.factories import StationFactory
 from tests.missions.test_robot_step import create, put_state
 from vda5050.models import OrderContent
 
@@ -23,6 +25,8 @@ pytestmark = pytest.mark.django_db(transaction=True)
 UNSHOWN = importlib.import_module("changes.migrations.0004_mission_progress_unshown").UNSHOWN
 ROBOT_UNSHOWN = UNSHOWN[Robot._meta.db_table][1]
 MISSION_UNSHOWN = UNSHOWN[Mission._meta.db_table][1]
+STATIONS_IN_FEED = importlib.import_module("changes.migrations.0005_stations")
+STATION_UNSHOWN = STATIONS_IN_FEED.UNSHOWN[Station._meta.db_table][1]
 
 
 def images(kind: str, name: str) -> list[dict]:
@@ -93,9 +97,11 @@ def test_every_column_is_unshown_or_compared_by_the_update_trigger(robot: Robot)
     makes the triggers again (changes 0003's `triggers_sql`)."""
     create("m1", robot)
     robot_step(name=robot.name)
+    StationFactory(name="s1")
     for model, kind, name, unshown in (
         (Robot, ChangeKind.ROBOT, robot.name, ROBOT_UNSHOWN),
         (Mission, ChangeKind.MISSION, "m1", MISSION_UNSHOWN),
+        (Station, ChangeKind.STATION, "s1", STATION_UNSHOWN),
     ):
         table = model._meta.db_table
         with connection.cursor() as cursor:

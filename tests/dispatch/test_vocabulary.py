@@ -13,6 +13,7 @@ from missions import choices as mission_choices
 from missions.models import Mission
 from robots import choices as robot_choices
 from robots.models import Robot
+from stations import choices as station_choices
 
 VOCABULARY = {
     name: enum
@@ -24,14 +25,22 @@ VOCABULARY = {
 # Every Django choices class of the choices modules named after a vocabulary enum, by its dotted path.
 CHOICES = {
     f"{module.__name__}.{name}": value
-    for module in (mission_choices, robot_choices)
+    for module in (mission_choices, robot_choices, station_choices)
     for name, value in vars(module).items()
     if name in VOCABULARY and isinstance(value, type) and issubclass(value, models.Choices)
 }
 
 
-def test_the_vocabulary_has_the_five_concepts_and_each_has_its_django_choices():
-    assert set(VOCABULARY) == {"MissionState", "NodeKind", "FailureCategory", "RobotState", "Lifecycle"}
+def test_the_vocabulary_has_the_seven_concepts_and_each_has_its_django_choices():
+    assert set(VOCABULARY) == {
+        "MissionState",
+        "NodeKind",
+        "FailureCategory",
+        "RobotState",
+        "Lifecycle",
+        "AgvClass",
+        "StationKind",
+    }
     assert {choices.__name__ for choices in CHOICES.values()} == set(VOCABULARY)
 
 
@@ -45,7 +54,8 @@ def test_django_choices_have_exactly_the_vocabulary_names_and_values(path):
 
 
 def test_the_shared_names_are_the_same_objects():
-    assert mission_choices.Lifecycle is robot_choices.Lifecycle
+    assert mission_choices.Lifecycle is robot_choices.Lifecycle is station_choices.Lifecycle
+    assert robot_choices.AgvClass is station_choices.AgvClass
     assert mission_choices.DONE_STATES is vocabulary.DONE_STATES
 
 

@@ -13,6 +13,7 @@ from drf_spectacular.validation import validate_schema
 from kit.api.fields import MAX_SECONDS
 from kit.api.names import OBJECT_NAME_MAX_LENGTH
 from missions.tuning import MAX_NOTIFY_TIMEOUT
+from stations.models import MAX_CAPACITY
 from tests.readme import README_MISSIONS, README_ROBOT
 
 ENDPOINTS = {
@@ -24,6 +25,8 @@ ENDPOINTS = {
     "/mission/{name}": {"get", "delete"},
     "/mission/{name}/cancel": {"post"},
     "/mission/{name}/update": {"post"},
+    "/station": {"get", "post"},
+    "/station/{name}": {"get", "put", "delete"},
     "/health": {"get"},
     "/behaviors": {"get"},
 }
@@ -37,6 +40,7 @@ ROBOT_FILTERS = {
     "robot_type",
 }
 MISSION_FILTERS = {"state", "started_after", "started_before", "robot", "most_recent"}
+STATION_FILTERS = {"kind", "map_id", "robot_type", "names"}
 
 
 @pytest.fixture(scope="module")
@@ -205,6 +209,19 @@ def test_the_schema_states_the_limits(schema):
     assert (most_recent["minimum"], most_recent["maximum"]) == (0, 2**63 - 1)
     assert names["maxItems"] == settings.API_MAX_FILTER_VALUES
     assert (names["items"]["minLength"], names["items"]["pattern"]) == (1, "^[^\\u0000]*$")
+
+
+
+def test_the_station_filters_and_limits_are_documented(schema):
+    filters = query_parameters(schema["paths"]["/station"]["get"])
+    station = schema["components"]["schemas"]["StationCreateRequest"]["properties"]
+
+    assert set(filters) == STATION_FILTERS
+    assert all(parameter.get("description") for parameter in filters.values())
+    assert filters["names"]["schema"]["maxItems"] == settings.API_MAX_FILTER_VALUES
+    assert set(filters["kind"]["schema"]["enum"]) == {"CHARGER", "PARKING"}
+    assert (station["capacity"]["minimum"], station["capacity"]["maximum"]) == (1, MAX_CAPACITY)
+    assert "#/components/schemas/PoseRequest" in json.dumps(station["pose"])
 
 
 PUBLIC_OPERATIONS = {("/health", "get")}

@@ -22,6 +22,7 @@ print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "red
         "dispatch.records",
         "dispatch.held",
         "dispatch.assignment",
+        "dispatch.stations",
         "dispatch.sent",
         "dispatch.faults",
         "vda5050",

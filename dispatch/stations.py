@@ -1,0 +1,282 @@
+"""Which robot goes to charge or park at which station, and when it stops charging (issue 44): records in,
+trips, releases and waiting reasons out, no I/O.
+
+The rules, in the order they decide:
+
+- Reservations first: a station holds at most `capacity` robots (reserved, on their way, or there) and a
+  robot holds at most one station. A reservation is released when its robot is gone or offline (past its
+  heartbeat timeout), holds another station too (the first by station name is kept), or holds a parking
+  station and is no longer idle (it got a mission).
+- Stop charging: a robot at its charger stops (stopCharging, its charger released) once its battery reaches
+  `recommended_maximum`, or, where that is null, once the robot no longer reports `charging`.
+- Charging: a robot is low at or below `recommended_minimum` (where that is null, its critical level). A low
+  robot that is online, idle (no running mission, not in teleop), whose factsheet lists `startCharging`,
+  and that holds no charger gets the nearest free charger it may use (its type; on its map), the lowest
+  battery first when chargers are scarce. A robot parked leaves its parking station for the charger.
+- Parking (when `park_after_seconds` is set): a robot idle that long, online, not low, holding no station,
+  gets the nearest free parking station it may use on its map, the longest idle first.
+- Every low robot without a charging trip gets one waiting reason, the first that holds.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+
+from dispatch.assignment import Pose
+from dispatch.vocabulary import StationKind
+
+__all__ = [
+    "CHARGING",
+    "NOT_IDLE",
+    "NO_CHARGER",
+    "NO_FREE_CHARGER",
+    "NO_POSE",
+    "NO_START_CHARGING",
+    "OFFLINE",
+    "Battery",
+    "Pose",
+    "Release",
+    "StationPlan",
+    "StationRobot",
+    "StationSite",
+    "Trip",
+    "plan_stations",
+]
+
+# Why a low robot gets no charging trip: the first that holds, in this order.
+CHARGING = "charging"  # it holds a charger: on its way, or charging there
+OFFLINE = "offline"
+NOT_IDLE = "running a mission or in teleop"
+NO_START_CHARGING = "factsheet lists no startCharging"
+NO_POSE = "no pose on a map"
+NO_CHARGER = "no charger it may use on its map"
+NO_FREE_CHARGER = "no free charger"
+
+# Why a reservation is released.
+GONE = "robot gone or offline"
+HELD_TWICE = "robot holds another station"
+OVER_CAPACITY = "station over capacity"
+GOT_MISSION = "robot got a mission"
+CHARGED = "charged"
+LEFT_FOR_CHARGER = "left for a charger"
+
+
+@dataclass(frozen=True)
+class Battery:
+    level: float  # as the robot reports it, in the unit of the thresholds below
+    critical_level: float
+    recommended_minimum: float | None
+    recommended_maximum: float | None
+    charging: bool  # VDA 5050 batteryState.charging
+
+    @property
+    def low(self) -> bool:
+        """At or below its recommended minimum (where that is null, its critical level)."""
+        threshold = self.critical_level
+        if self.recommended_minimum is not None:
+            threshold = max(threshold, self.recommended_minimum)
+        return self.level <= threshold
+
+    @property
+    def charged(self) -> bool:
+        """Full enough to stop: at its recommended maximum, or, where that is null, no longer charging."""
+        if self.recommended_maximum is None:
+            return not self.charging
+        return self.level >= self.recommended_maximum
+
+
+@dataclass(frozen=True)
+class StationRobot:
+    name: str
+    robot_type: str | None
+    pose: Pose | None
+    online: bool
+    idle: bool  # no running mission, not in teleop
+    battery: Battery
+    can_charge: bool  # its factsheet lists startCharging
+    at_station: bool  # its trip to the station it holds has ended (startCharging done, for a charger)
+    idle_since: datetime | None  # None: not idle, or since when is not known
+
+
+@dataclass(frozen=True)
+class StationSite:
+    name: str
+    kind: StationKind
+    pose: Pose
+    robot_types: frozenset[str]  # empty: any robot
+    capacity: int
+    reservations: tuple[str, ...]  # robots holding it, in the order they got it
+
+    def serves(self, robot: StationRobot) -> bool:
+        on_map = robot.pose is not None and robot.pose.map_id == self.pose.map_id
+        return on_map and (not self.robot_types or robot.robot_type in self.robot_types)
+
+
+@dataclass(frozen=True)
+class Trip:
+    """A robot sent to a station, reserved for it first."""
+
+    robot: str
+    station: str
+    kind: StationKind
+    leaves: str | None = None  # the station it held until now (released), if any
+
+
+@dataclass(frozen=True)
+class Release:
+    robot: str
+    station: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class StationPlan:
+    charging_trips: tuple[Trip, ...]
+    parking_trips: tuple[Trip, ...]
+    stop_charging: tuple[str, ...]  # robots to send stopCharging (their charger is among the releases)
+    releases: tuple[Release, ...]
+    waiting: dict[str, str]  # low robot -> why it has no charging trip
+    reservations: dict[str, tuple[str, ...]]  # every station -> the robots holding it after this plan
+
+
+def plan_stations(
+    robots: Sequence[StationRobot],
+    stations: Sequence[StationSite],
+    *,
+    now: datetime,
+    park_after_seconds: float | None,
+) -> StationPlan:
+    """The trips, releases and waiting reasons for these robots and stations, by the module's rules."""
+    by_name = {robot.name: robot for robot in robots}
+    stations = sorted(stations, key=lambda station: station.name)
+    kinds = {station.name: station.kind for station in stations}
+    held: dict[str, list[str]] = {station.name: [] for station in stations}
+    holding: dict[str, str] = {}  # robot -> the station it holds
+    releases: list[Release] = []
+
+    for station in stations:
+        for name in station.reservations:
+            robot = by_name.get(name)
+            if robot is None or not robot.online:
+                releases.append(Release(name, station.name, GONE))
+            elif name in holding:
+                releases.append(Release(name, station.name, HELD_TWICE))
+            elif station.kind == StationKind.PARKING and not robot.idle:
+                releases.append(Release(name, station.name, GOT_MISSION))
+            elif len(held[station.name]) >= station.capacity:
+                releases.append(Release(name, station.name, OVER_CAPACITY))
+            else:
+                held[station.name].append(name)
+                holding[name] = station.name
+
+    stop_charging = []
+    for name, station in sorted(holding.items()):
+        robot = by_name[name]
+        if kinds[station] == StationKind.CHARGER and robot.at_station and robot.battery.charged:
+            stop_charging.append(name)
+            releases.append(Release(name, station, CHARGED))
+            held[station].remove(name)
+            del holding[name]
+
+    def release_for_trip(robot: StationRobot) -> str | None:
+        left = holding.pop(robot.name, None)
+        if left is not None:
+            held[left].remove(robot.name)
+            releases.append(Release(robot.name, left, LEFT_FOR_CHARGER))
+        return left
+
+    def reserve(robot: StationRobot, station: StationSite) -> None:
+        held[station.name].append(robot.name)
+        holding[robot.name] = station.name
+
+    charging_trips, waiting = [], {}
+    chargers = [station for station in stations if station.kind == StationKind.CHARGER]
+    low = sorted(
+        (robot for robot in robots if robot.battery.low),
+        key=lambda robot: (robot.battery.level, robot.name),
+    )
+    for robot in low:
+        reason = _charging_blocked(robot, holding, kinds)
+        if reason is None:
+            usable = [station for station in chargers if station.serves(robot)]
+            free = [station for station in usable if len(held[station.name]) < station.capacity]
+            if free:
+                charger = _nearest(robot, free)
+                charging_trips.append(
+                    Trip(robot.name, charger.name, StationKind.CHARGER, release_for_trip(robot))
+                )
+                reserve(robot, charger)
+                continue
+            reason = NO_FREE_CHARGER if usable else NO_CHARGER
+        waiting[robot.name] = reason
+
+    parking_trips = []
+    if park_after_seconds is not None:
+        parking = [station for station in stations if station.kind == StationKind.PARKING]
+        idle = sorted(
+            (robot for robot in robots if _parks(robot, holding, now=now, after=park_after_seconds)),
+            key=lambda robot: (robot.idle_since, robot.name),
+        )
+        for robot in idle:
+            free = [
+                station
+                for station in parking
+                if station.serves(robot) and len(held[station.name]) < station.capacity
+            ]
+            if free:
+                place = _nearest(robot, free)
+                parking_trips.append(Trip(robot.name, place.name, StationKind.PARKING))
+                reserve(robot, place)
+
+    return StationPlan(
+        charging_trips=tuple(charging_trips),
+        parking_trips=tuple(parking_trips),
+        stop_charging=tuple(stop_charging),
+        releases=tuple(releases),
+        waiting=waiting,
+        reservations={name: tuple(robots_there) for name, robots_there in held.items()},
+    )
+
+
+def _charging_blocked(
+    robot: StationRobot, holding: dict[str, str], kinds: dict[str, StationKind]
+) -> str | None:
+    """Why a low robot gets no charging trip before a charger is looked for; None: it may get one."""
+    if kinds.get(holding.get(robot.name, "")) == StationKind.CHARGER:
+        return CHARGING
+    if not robot.online:
+        return OFFLINE
+    if not robot.idle:
+        return NOT_IDLE
+    if not robot.can_charge:
+        return NO_START_CHARGING
+    if robot.pose is None:
+        return NO_POSE
+    return None
+
+
+def _parks(robot: StationRobot, holding: dict[str, str], *, now: datetime, after: float) -> bool:
+    """Idle for `after` seconds, online, not low, holding no station."""
+    return (
+        robot.online
+        and robot.idle
+        and robot.idle_since is not None
+        and (now - robot.idle_since).total_seconds() >= after
+        and not robot.battery.low
+        and robot.name not in holding
+    )
+
+
+def _nearest(robot: StationRobot, stations: list[StationSite]) -> StationSite:
+    """The station nearest the robot in a straight line (all on its map); equal distances by name."""
+    assert robot.pose is not None
+    return min(
+        stations,
+        key=lambda station: (
+            math.hypot(station.pose.x - robot.pose.x, station.pose.y - robot.pose.y),
+            station.name,
+        ),
+    )
