@@ -15,6 +15,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -147,6 +148,24 @@ class Stack:
     def stop(self) -> None:
         for process in self.processes.values():
             process.stop()
+
+    @contextmanager
+    def reconfigured(self, *names: str, **overrides: str) -> Iterator[None]:
+        """The processes `names` (worker, beat ...) restarted with more settings while the block runs, then
+        again as before: a setting for a few tests only, without a second stack on the same database."""
+        for name in names:
+            self._replace(name, {**self.env, **overrides})
+        try:
+            yield
+        finally:
+            for name in names:
+                self._replace(name, self.env)
+
+    def _replace(self, name: str, env: dict[str, str]) -> None:
+        old = self.processes[name]
+        old.stop()
+        self.processes[name] = Process(name, old.argv, env, old.log)
+        self.processes[name].start()
 
 
 class Recorder:
