@@ -39,7 +39,6 @@ ACTION_FAILURE = "Action failure"
 NO_POSITION = "Robot does not report its position"
 
 
-
 def step(
     *,
     now: datetime,
@@ -803,7 +802,8 @@ def _route_update_pending(
     tree: engine.Tree, mission: MissionRecord, leaf: engine.Node, settings: DispatchSettings
 ) -> bool:
     """The running route's order (or the order update that brought it) was built from waypoints that an
-    update has since replaced."""
+    update has since replaced. An order of the route's last waypoints alone (the rest resumed after the
+    robot lost the order, `_take_over`) is stale only if they are not the route's last ones now."""
     if leaf.kind != NodeKind.ROUTE or mission.order is None or not mission.update_nodes:
         return False
     if (
@@ -822,8 +822,10 @@ def _route_update_pending(
     first = sent.nodes[0].node_position
     assert first is not None
     start = orders.Pose(first.x, first.y, first.theta or 0.0, first.map_id)
-    expected = build_order(mission.name, leaf, key.attempt, start, first.allowed_deviation_xy or 0.0)
-    return expected != sent
+    deviation = first.allowed_deviation_xy or 0.0
+    if build_order(mission.name, leaf, key.attempt, start, deviation) == sent:
+        return False
+    return build_order(mission.name, leaf, key.attempt, start, deviation, tail=len(sent.nodes) - 1) != sent
 
 
 def _restart_updated_leaf(

@@ -88,6 +88,25 @@ def test_a_robot_that_restarts_on_a_route_gets_the_rest_of_it_as_a_new_order_and
     assert (dispatcher.node("r1"), dispatcher.node("r2")) == (MissionState.COMPLETED, MissionState.RUNNING)
 
 
+def test_a_restarted_robot_drives_only_the_rest_of_a_route_that_had_a_route_update() -> None:
+    """The resumed order is the updated route's rest, not a stale one: no cancel, no drive from the start."""
+    updated = {"waypoints": [{"x": x, "y": 1.0, "theta": 0.0, "map_id": "map"} for x in (1.0, 2.0, 3.0)]}
+    dispatcher = Dispatcher(mission(R1, update_nodes={"r1": updated}), settings=STALL_SETTINGS)
+    dispatcher.step(robot_state())
+    dispatcher.step(on_order(dispatcher.order, 2), after=1.0)
+    assert waypoints(dispatcher.order) == [(1.0, 1.0), (2.0, 1.0), (3.0, 1.0)]
+
+    [resumed] = orders_sent(dispatcher.step(RESTARTED, after=2.0))
+    assert waypoints(resumed) == [(2.0, 1.0), (3.0, 1.0)]
+
+    result = dispatcher.step(on_order(resumed, 0), after=1.0)
+
+    assert (orders_sent(result), cancel_actions(result.actions)) == ([], [])
+    assert dispatcher.node("r1") == MissionState.RUNNING
+    result = dispatcher.step(finished(resumed), after=5.0)
+    assert dispatcher.node("r1") == MissionState.COMPLETED
+
+
 def test_a_robot_that_restarts_during_a_running_action_fails_the_leaf_and_the_fallback_runs() -> None:
     dispatcher = Dispatcher(mission(selector("s"), action("a", parent="s"), route("f", parent="s")))
     dispatcher.step(robot_state())
