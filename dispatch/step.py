@@ -58,7 +58,7 @@ def step(
         actions=[replace(a) for a in actions],
         switch_teleop=robot.switch_teleop,
     )
-    _track_instant_actions(result, robot, state, now, settings)
+    _track_instant_actions(result, state, state_arrived_at)
     _switch_to_legacy_key(result, robot, state)
     _track_charging(result, state)
     if mission is not None:
@@ -76,12 +76,23 @@ def step(
 
 
 def _track_instant_actions(
-    result: StepResult, robot: RobotView, state: State | None, now: datetime, settings: DispatchSettings
+    result: StepResult, state: State | None, state_arrived_at: datetime | None
 ) -> None:
+    """The robot's reports of our instant actions. One it reported started and whose state, sent after the
+    action reached it, no longer names it at all was forgotten (the robot restarted): it goes out again."""
     if state is None:
         return
     for action in result.actions:
         status = vda_state.action_status(state, action.action_id)
+        if (
+            status is None
+            and action.status is not None
+            and action.sent_at is not None
+            and arrived_after_order(state_arrived_at, action.sent_at)
+        ):
+            action.status = None
+            action.sent_at = None  # due now (`_send_instant_actions`)
+            continue
         if status is None and action.action_type == ActionType.CANCEL_ORDER and action.sent_at is not None:
             refusal = compat.cancel_refusal(state, action.action_id)
             if refusal is not None:

@@ -132,6 +132,20 @@ def test_an_instant_action_a_restarted_robot_never_confirmed_is_sent_again() -> 
     assert [a.action_type for a in instant_actions_sent(result)] == [ActionType.START_PAUSE]
 
 
+def test_an_instant_action_a_restarted_robot_had_running_is_sent_again_at_once() -> None:
+    dispatcher = on_first_route()
+    pause = instant_action(ActionType.START_PAUSE, status=ActionStatus.RUNNING.value, sent_at=dispatcher.now)
+    dispatcher.actions = [pause]
+
+    late = dispatcher.step(RESTARTED, after=2.0, arrived_at=pause.sent_at + timedelta(seconds=0.5))
+    assert instant_actions_sent(late) == []  # a state that may have left the robot before the action
+
+    result = dispatcher.step(RESTARTED, after=0.5)
+
+    assert [a.action_id for a in instant_actions_sent(result)] == [pause.action_id]
+    assert dispatcher.step(RESTARTED, after=0.5).messages == []  # once; then after the resend period
+
+
 NOT_LOST: dict[str, Callable[[Dispatcher], None]] = {
     # a state that may have left the robot before the order reached it
     "a late state": lambda d: d.step(
