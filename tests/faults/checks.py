@@ -366,7 +366,8 @@ def check_leaves(
     sent ahead in an order update (`carried_leaf`) counts only if the robot's states show it took that
     update: one it never took (lost, refused) ran nothing, and the leaf gets an order of its own. A leaf's
     next attempt sent after its robot restarted (`restarts` began between the leaf's previous order and
-    that one) is the rest of its route resumed, not the leaf run twice."""
+    that one) is the rest of its route resumed: not the leaf run twice, nor a step back from the next leaf
+    if that one had only been sent ahead."""
     result = CheckResult("leaves in order, never twice")
     resumed = 0
     by_name = {m.name: m for m in posted}
@@ -415,17 +416,22 @@ def check_leaves(
                     f"which is not a leaf (leaves {sorted(leaf_names)})"
                 )
                 continue
-            if index < highest:
+            ids = ids_per_leaf[index]
+            resuming = (
+                order_id not in ids
+                and bool(ids)
+                and any(sent_at[index] <= w.start <= message.t for w in restarts)
+            )
+            if index < highest and not resuming:  # resuming: the later leaf had only gone ahead
                 result.problems.append(
                     f"mission {mission.name} (robot {mission.robot}): order {order_id} for leaf "
                     f"{leaf_names[index]} came after an order for the later leaf n{highest} "
                     f"({_at(message.t, origin)})"
                 )
             highest = max(highest, index)
-            if order_id in ids_per_leaf[index]:
+            if order_id in ids:
                 continue
-            ids = ids_per_leaf[index]
-            if ids and any(sent_at[index] <= w.start <= message.t for w in restarts):
+            if resuming:
                 resumed += 1
                 ids[-1] = order_id  # the rest of the leaf, resumed: it stands for the leaf
             else:

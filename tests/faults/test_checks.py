@@ -236,6 +236,21 @@ def test_a_leaf_resumed_after_its_robot_restarted_is_not_reached_twice():
     assert not checks.check_leaves([M1], final, messages, [], restarts=[Window(6, 7, "simulator")]).ok
 
 
+def test_a_leaf_resumed_after_its_robot_restarted_may_follow_the_next_leaf_sent_ahead():
+    messages = [
+        order(1, "r1", "m1-n0-r0", 0),
+        ahead(2, "r1", "m1-n0-r0", 1, "m1-n1-r0"),
+        taken(2.5, "r1", "m1-n0-r0", 1),
+        order(5, "r1", "m1-n0-r1", 2),  # restarted before the end of the first route: its rest
+        order(8, "r1", "m1-n1-r1", 3),  # the next route, its own order
+    ]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+
+    assert checks.check_leaves([M1], final, messages, [], restarts=[Window(3, 4, "simulator")]).ok
+    text = "\n".join(checks.check_leaves([M1], final, messages, []).problems)
+    assert "order m1-n0-r1 for leaf a came after an order for the later leaf n1" in text
+
+
 def ahead(t: float, serial: str, order_id: str, header_id: int, leaf: str, update: int = 1) -> WireMessage:
     """An order update carrying the leaf `leaf` (`<mission>-n<index>-r<attempt>`) sent ahead."""
     nodes = [
