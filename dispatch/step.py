@@ -413,16 +413,16 @@ def _follow_order(
         and _pending_action(result, ActionType.CANCEL_ORDER) is None
         and faults.watch_progress(robot, state, mission, now, settings.order_stall.total_seconds())
     ):
-        _end_stalled(result, state, mission, settings)
+        _end_stalled(result, state, mission, now, settings)
 
 
 def _end_stalled(
-    result: StepResult, state: State, mission: MissionRecord, settings: DispatchSettings
+    result: StepResult, state: State, mission: MissionRecord, now: datetime, settings: DispatchSettings
 ) -> None:
     """An order the robot took and does not execute is canceled; once the robot confirms, the rest goes out
     anew (`_take_over`). A robot that stalled on an order update (a route sent ahead) gets the compatibility
     rule ORDER_UPDATE_NOT_EXECUTED: it is sent no routes ahead from then on."""
-    faults.end_stalled(mission)
+    faults.end_stalled(mission, now)
     _cancel_of_order(result, mission)
     if state.order_update_id > 0:
         seconds = settings.order_stall.total_seconds()
@@ -445,15 +445,20 @@ def _take_over(
     may not have done it: the tree decides what follows); a route goes on with a new order of the
     waypoints the robot had not reached, from where it stands, once it can take one. The update sent ahead
     is dropped: the next leaf gets an order of its own."""
-    mission.progress_seen_at = None  # no stall clock: the robot's own states wake the steps until then
     if faults.order_ended(mission, sent):
         cancel = _order_cancel(result, mission)
-        if cancel is not None and cancel.status not in FINAL:
-            return
         seconds = settings.order_stall.total_seconds()
-        reason = faults.stalled_reason(sent.latest.order_id, mission.progress["orderUpdateId"], seconds)
+        update_id = mission.progress["orderUpdateId"]
+        if cancel is not None and cancel.status not in FINAL:
+            if faults.cancel_overdue(mission, now, seconds):  # the stall clock's wake-up, or a state's
+                mission.progress_seen_at = None
+                reason = faults.unconfirmed_reason(sent.latest.order_id, update_id, seconds)
+                _leaf_failed(mission, leaf, reason)
+            return
+        reason = faults.stalled_reason(sent.latest.order_id, update_id, seconds)
     else:
         reason = faults.lost_reason(sent.stored.order_id)
+    mission.progress_seen_at = None  # no stall clock: the robot's own states wake the steps until then
     if leaf.kind != NodeKind.ROUTE:
         _leaf_failed(mission, leaf, reason)
         return

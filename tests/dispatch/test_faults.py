@@ -209,6 +209,28 @@ def test_an_order_taken_and_not_executed_is_canceled_and_the_rest_sent_anew() ->
     assert dispatcher.node("r1") == MissionState.RUNNING
 
 
+def test_a_stalled_order_whose_cancel_the_robot_never_confirms_fails_its_leaf_after_another_period() -> None:
+    dispatcher = Dispatcher(mission(R1), settings=STALL_SETTINGS)
+    dispatcher.step(robot_state())
+    order = dispatcher.order
+    still = on_order(order, 2)
+    dispatcher.step(still, after=1.0)
+    dispatcher.step(still, after=30.0)
+    assert cancel_actions(dispatcher.actions)
+    assert dispatcher.mission.progress_seen_at == dispatcher.now  # beat's wake-up once the cancel is overdue
+
+    dispatcher.step(still, after=29.0)  # the cancel re-sent, still unconfirmed: the leaf waits
+    assert dispatcher.node("r1") == MissionState.RUNNING
+
+    dispatcher.step(still, after=1.0)
+
+    assert dispatcher.node("r1") == MissionState.FAILED and dispatcher.mission.progress_seen_at is None
+    assert dispatcher.mission.node_status["r1"]["error_msg"] == faults.unconfirmed_reason(
+        order.order_id, 0, 30
+    )
+    assert "nor confirmed its cancel" in faults.unconfirmed_reason(order.order_id, 0, 30)
+
+
 def test_a_stalled_action_fails_once_the_cancel_is_confirmed() -> None:
     dispatcher = Dispatcher(mission(action("a")), settings=STALL_SETTINGS)
     dispatcher.step(robot_state())
@@ -342,6 +364,8 @@ def play(events: list[tuple[float, str]]) -> Iterator[tuple[Dispatcher, str, dic
     dispatcher.step(robot_state())
     reached = 0
     for after, kind in events:
+        if dispatcher.mission.order is None:
+            return  # the leaf failed: a cancel never confirmed for a stall period (`cancel_overdue`)
         if kind == "progress":
             reached = min(reached + 2, 6)
         arrived_at = dispatcher.mission.order_sent_at if kind == "early empty" else None
