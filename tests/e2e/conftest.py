@@ -127,6 +127,18 @@ class Process:
         return self.log.read_text(errors="replace")
 
 
+@contextmanager
+def running(process: Process) -> Iterator[Process]:
+    """`process` (a robot stack of a third party, say) started while the block runs, then stopped; its output
+    printed, for the test's report."""
+    process.start()
+    try:
+        yield process
+    finally:
+        process.stop()
+        print(process.output())
+
+
 @dataclass
 class Stack:
     env: dict[str, str]

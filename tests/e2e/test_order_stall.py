@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from django.conf import settings
 
-from tests.e2e.conftest import Process, Recorder, Simulator, Stack
+from tests.e2e.conftest import Process, Recorder, Simulator, Stack, running
 from tests.e2e.helpers import create_robot, get, post_mission, route, wait_mission
 from tests.waiting import wait_for
 
@@ -119,29 +119,26 @@ def vda5050_sdk_agv(
 ) -> Iterator[Process]:
     """The real vda5050-sdk 0.2.0 vehicle as robot `robot` (interface uagv, which the library fixes) on the
     test broker, while the block runs; `executors` as `pypi/vda5050_sdk_agv.py` takes them."""
-    agv = Process(
-        "vda5050-sdk",
-        [
-            str(python),
-            str(Path(__file__).with_name("pypi") / "vda5050_sdk_agv.py"),
-            f"mqtt://{settings.MQTT_HOST}:{settings.MQTT_PORT}",
-            "RobotCompany",
-            robot,
-            "2.1.0",
-            "0",
-            "0",
-            "1.0",  # seconds from node to node
-            executors,
-        ],
-        {key: value for key, value in stack.env.items() if key != "PYTHONPATH"},
-        tmp_path / "agv.log",
-    )
-    agv.start()
-    try:
+    with running(
+        Process(
+            "vda5050-sdk",
+            [
+                str(python),
+                str(Path(__file__).with_name("pypi") / "vda5050_sdk_agv.py"),
+                f"mqtt://{settings.MQTT_HOST}:{settings.MQTT_PORT}",
+                "RobotCompany",
+                robot,
+                "2.1.0",
+                "0",
+                "0",
+                "1.0",  # seconds from node to node
+                executors,
+            ],
+            {key: value for key, value in stack.env.items() if key != "PYTHONPATH"},
+            tmp_path / "agv.log",
+        )
+    ) as agv:
         yield agv
-    finally:
-        agv.stop()
-        print(agv.output())
 
 
 @pytest.mark.parametrize(("executors", "stalls"), [("one", True), ("per-order", False)])
