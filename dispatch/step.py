@@ -78,8 +78,10 @@ def step(
 def _track_instant_actions(
     result: StepResult, state: State | None, state_arrived_at: datetime | None
 ) -> None:
-    """The robot's reports of our instant actions. One it reported started and whose state, sent after the
-    action reached it, no longer names it at all was forgotten (the robot restarted): it goes out again."""
+    """The robot's reports of our instant actions. One it reported started, unfinished, that a state holding
+    no order (a fresh process) and sent after the action reached it no longer names at all was forgotten:
+    the robot restarted, and the action goes out again. (A robot may drop action states when it takes a new
+    order: with an order held, a missing state proves nothing.)"""
     if state is None:
         return
     for action in result.actions:
@@ -87,6 +89,7 @@ def _track_instant_actions(
         if (
             status is None
             and action.status is not None
+            and not state.order_id
             and action.sent_at is not None
             and arrived_after_order(state_arrived_at, action.sent_at)
         ):
