@@ -22,7 +22,7 @@ from vda5050 import orders
 from vda5050 import state as vda_state
 from vda5050.models import OrderContent, State
 
-ENDED = "ended"  # set in `MissionRecord.progress` once the order was canceled as stalled
+ENDED = "ended"  # in `MissionRecord.progress`: when the order was canceled as stalled (ISO 8601)
 
 
 def lost_reason(order_id: str) -> str:
@@ -35,6 +35,13 @@ def stalled_reason(order_id: str, update_id: int, seconds: float) -> str:
     return (
         f"Robot took order {order_id} (update {update_id}) but showed no progress on it for {seconds:g} s; "
         "it was canceled"
+    )
+
+
+def unconfirmed_reason(order_id: str, update_id: int, seconds: float) -> str:
+    return (
+        f"Robot took order {order_id} (update {update_id}) but showed no progress on it for {seconds:g} s, "
+        f"nor confirmed its cancel for {seconds:g} s more"
     )
 
 
@@ -102,10 +109,23 @@ def watch_progress(
     return (now - mission.progress_seen_at).total_seconds() >= stall_seconds
 
 
-def end_stalled(mission: MissionRecord) -> None:
-    """Mark the order canceled as stalled (`order_ended`)."""
+def end_stalled(mission: MissionRecord, now: datetime) -> None:
+    """Mark the order canceled as stalled (`order_ended`), now; the stall clock starts again, so that beat
+    wakes a step once the cancel is overdue (`cancel_overdue`) if no state of the robot did."""
     assert mission.progress is not None
-    mission.progress = {**mission.progress, ENDED: True}
+    mission.progress = {**mission.progress, ENDED: now.isoformat()}
+    mission.progress_seen_at = now
+
+
+def cancel_overdue(mission: MissionRecord, now: datetime, stall_seconds: float) -> bool:
+    """The robot has not confirmed the cancel of its stalled order for another `stall_seconds` since it was
+    sent (and re-sent): its leaf fails rather than wait for the mission's timeout."""
+    assert mission.progress is not None
+    ended = mission.progress[ENDED]
+    if not isinstance(ended, str):  # marked before the time was kept (`true`): counts from now on
+        mission.progress = {**mission.progress, ENDED: now.isoformat()}
+        return False
+    return (now - datetime.fromisoformat(ended)).total_seconds() >= stall_seconds
 
 
 def _excused(robot: RobotView, state: State) -> bool:

@@ -154,4 +154,3 @@ def takes_order_only(before: StateDigest, after: StateDigest) -> bool:
     if before.busy:
         return after.order_id == before.order_id and after.order_update_id > before.order_update_id
     return after.order_id != before.order_id
-

@@ -61,9 +61,16 @@ def stored(order: OrderContent) -> dict[str, Any]:
 
 
 def build_order(
-    mission: str, leaf: engine.Node, attempt: int, pose: orders.Pose, start_deviation_xy: float
+    mission: str,
+    leaf: engine.Node,
+    attempt: int,
+    pose: orders.Pose,
+    start_deviation_xy: float,
+    *,
+    tail: int | None = None,
 ) -> OrderContent:
-    """The VDA 5050 order that executes a route, move or action leaf from the robot's pose."""
+    """The VDA 5050 order that executes a route, move or action leaf from the robot's pose; of a route,
+    only its last `tail` waypoints (the rest a robot that lost the order resumes, `dispatch.faults`)."""
     assert leaf.index is not None
     common = {
         "mission": mission,
@@ -73,7 +80,8 @@ def build_order(
         "start_deviation_xy": start_deviation_xy,
     }
     if leaf.kind == NodeKind.ROUTE:
-        return orders.route_order(waypoints=[_waypoint(wp) for wp in leaf.params["waypoints"]], **common)
+        waypoints = [_waypoint(wp) for wp in leaf.params["waypoints"]]
+        return orders.route_order(waypoints=waypoints[-tail:] if tail else waypoints, **common)
     if leaf.kind == NodeKind.MOVE:
         return orders.move_order(
             distance=leaf.params.get("distance"), rotation=leaf.params.get("rotation"), **common

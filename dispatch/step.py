@@ -39,7 +39,6 @@ ACTION_FAILURE = "Action failure"
 NO_POSITION = "Robot does not report its position"
 
 
-
 def step(
     *,
     now: datetime,
@@ -59,7 +58,7 @@ def step(
         actions=[replace(a) for a in actions],
         switch_teleop=robot.switch_teleop,
     )
-    _track_instant_actions(result, robot, state, now, settings)
+    _track_instant_actions(result, state, state_arrived_at)
     _switch_to_legacy_key(result, robot, state)
     _track_charging(result, state)
     if mission is not None:
@@ -77,12 +76,26 @@ def step(
 
 
 def _track_instant_actions(
-    result: StepResult, robot: RobotView, state: State | None, now: datetime, settings: DispatchSettings
+    result: StepResult, state: State | None, state_arrived_at: datetime | None
 ) -> None:
+    """The robot's reports of our instant actions. One it reported started, unfinished, that a state holding
+    no order (a fresh process) and sent after the action reached it no longer names at all was forgotten:
+    the robot restarted, and the action goes out again. (A robot may drop action states when it takes a new
+    order: with an order held, a missing state proves nothing.)"""
     if state is None:
         return
     for action in result.actions:
         status = vda_state.action_status(state, action.action_id)
+        if (
+            status is None
+            and action.status is not None
+            and not state.order_id
+            and action.sent_at is not None
+            and arrived_after_order(state_arrived_at, action.sent_at)
+        ):
+            action.status = None
+            action.sent_at = None  # due now (`_send_instant_actions`)
+            continue
         if status is None and action.action_type == ActionType.CANCEL_ORDER and action.sent_at is not None:
             refusal = compat.cancel_refusal(state, action.action_id)
             if refusal is not None:
@@ -403,16 +416,16 @@ def _follow_order(
         and _pending_action(result, ActionType.CANCEL_ORDER) is None
         and faults.watch_progress(robot, state, mission, now, settings.order_stall.total_seconds())
     ):
-        _end_stalled(result, state, mission, settings)
+        _end_stalled(result, state, mission, now, settings)
 
 
 def _end_stalled(
-    result: StepResult, state: State, mission: MissionRecord, settings: DispatchSettings
+    result: StepResult, state: State, mission: MissionRecord, now: datetime, settings: DispatchSettings
 ) -> None:
     """An order the robot took and does not execute is canceled; once the robot confirms, the rest goes out
     anew (`_take_over`). A robot that stalled on an order update (a route sent ahead) gets the compatibility
     rule ORDER_UPDATE_NOT_EXECUTED: it is sent no routes ahead from then on."""
-    faults.end_stalled(mission)
+    faults.end_stalled(mission, now)
     _cancel_of_order(result, mission)
     if state.order_update_id > 0:
         seconds = settings.order_stall.total_seconds()
@@ -435,15 +448,20 @@ def _take_over(
     may not have done it: the tree decides what follows); a route goes on with a new order of the
     waypoints the robot had not reached, from where it stands, once it can take one. The update sent ahead
     is dropped: the next leaf gets an order of its own."""
-    mission.progress_seen_at = None  # no stall clock: the robot's own states wake the steps until then
     if faults.order_ended(mission, sent):
         cancel = _order_cancel(result, mission)
-        if cancel is not None and cancel.status not in FINAL:
-            return
         seconds = settings.order_stall.total_seconds()
-        reason = faults.stalled_reason(sent.latest.order_id, mission.progress["orderUpdateId"], seconds)
+        update_id = mission.progress["orderUpdateId"]
+        if cancel is not None and cancel.status not in FINAL:
+            if faults.cancel_overdue(mission, now, seconds):  # the stall clock's wake-up, or a state's
+                mission.progress_seen_at = None
+                reason = faults.unconfirmed_reason(sent.latest.order_id, update_id, seconds)
+                _leaf_failed(mission, leaf, reason)
+            return
+        reason = faults.stalled_reason(sent.latest.order_id, update_id, seconds)
     else:
         reason = faults.lost_reason(sent.stored.order_id)
+    mission.progress_seen_at = None  # no stall clock: the robot's own states wake the steps until then
     if leaf.kind != NodeKind.ROUTE:
         _leaf_failed(mission, leaf, reason)
         return
@@ -803,7 +821,8 @@ def _route_update_pending(
     tree: engine.Tree, mission: MissionRecord, leaf: engine.Node, settings: DispatchSettings
 ) -> bool:
     """The running route's order (or the order update that brought it) was built from waypoints that an
-    update has since replaced."""
+    update has since replaced. An order of the route's last waypoints alone (the rest resumed after the
+    robot lost the order, `_take_over`) is stale only if they are not the route's last ones now."""
     if leaf.kind != NodeKind.ROUTE or mission.order is None or not mission.update_nodes:
         return False
     if (
@@ -822,8 +841,10 @@ def _route_update_pending(
     first = sent.nodes[0].node_position
     assert first is not None
     start = orders.Pose(first.x, first.y, first.theta or 0.0, first.map_id)
-    expected = build_order(mission.name, leaf, key.attempt, start, first.allowed_deviation_xy or 0.0)
-    return expected != sent
+    deviation = first.allowed_deviation_xy or 0.0
+    if build_order(mission.name, leaf, key.attempt, start, deviation) == sent:
+        return False
+    return build_order(mission.name, leaf, key.attempt, start, deviation, tail=len(sent.nodes) - 1) != sent
 
 
 def _restart_updated_leaf(

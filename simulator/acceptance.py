@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from simulator.config import RobotConfig, SimulationSettings
+from simulator.config import RobotConfig, SimulationSettings, Stack
 from simulator.errors import (
     ORDER_ERROR,
     ORDER_UPDATE_ERROR,
@@ -77,7 +77,7 @@ class OrderAcceptance:
                 f"orderUpdateId {order.order_update_id} is lower than the current {current.order_update_id}",
             )
         elif order.order_update_id > current.order_update_id:
-            current.update(order)
+            current.update(order, executed=self.config.stack != Stack.VDA5050_SDK_0_2)
         # an equal orderUpdateId is a resend of what the robot already has: discarded silently
 
     def _start(self, order: Order) -> None:

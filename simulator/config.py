@@ -45,6 +45,10 @@ class Stack(StrEnum):
     # key `instantActions` and rejects `actions` with a validationError naming it; answers a cancelOrder
     # without an order with a noOrderToCancel error and no action state.
     VDA_5050_LIB_1_4 = "vda-5050-lib-1.4"
+    # PyPI vda5050-sdk 0.2.0's vehicle (its VehicleClient and reference OrderExecutor): takes an order update
+    # that extends its order (reports the new orderUpdateId and node states), then stands still at the end
+    # of the base it had, reporting no error and not driving (its executor fails internally on the update).
+    VDA5050_SDK_0_2 = "vda5050-sdk-0.2"
 
 
 @dataclass(frozen=True)

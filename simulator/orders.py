@@ -29,6 +29,8 @@ class CurrentOrder:
         self.queue: deque[str] = deque()  # actionIds to run here, one after another
         self.running: str | None = None
         self.entered_edge: int | None = None  # sequenceId of the edge whose actions were queued
+        # Stack.VDA5050_SDK_0_2: the sequenceId it stands still at, having taken an update it never executes
+        self.halt_at: int | None = None
         self._outbox = outbox
 
     def start(self, order: Order) -> None:
@@ -46,10 +48,13 @@ class CurrentOrder:
         self.queue.clear()
         self.running = None
         self.entered_edge = None
+        self.halt_at = None
         self.arrive(order.nodes[0])
 
-    def update(self, order: Order) -> None:
-        """Stitch at the decision point: keep the base, replace the horizon, append the rest."""
+    def update(self, order: Order, *, executed: bool = True) -> None:
+        """Stitch at the decision point: keep the base, replace the horizon, append the rest. Not
+        ``executed`` (``Stack.VDA5050_SDK_0_2``): reported as taken, but the robot halts at the decision
+        point."""
         first = order.nodes[0]
         decision_point = self.decision_point()
         if (first.node_id, first.sequence_id) != decision_point:
@@ -72,7 +77,13 @@ class CurrentOrder:
         self.runs.update((action.action_id, ActionRun(action)) for action in new_actions)
         self.order_update_id = order.order_update_id
         self.zone_set_id = order.zone_set_id
+        if not executed and self.halt_at is None:
+            self.halt_at = decision_point[1]
         self._outbox.state_changed = True
+
+    def halted(self) -> bool:
+        """Standing still at ``halt_at`` with the rest of the order ahead."""
+        return self.halt_at is not None and self.last_node_sequence_id >= self.halt_at
 
     def decision_point(self) -> tuple[str, int]:
         """Last released node still ahead, else the node last reached."""
@@ -111,6 +122,7 @@ class CurrentOrder:
         self.queue.clear()
         self.running = None
         self.entered_edge = None
+        self.halt_at = None
 
     def node_states(self) -> list[NodeState]:
         return [

@@ -208,7 +208,7 @@ class SimulatedRobot:
             if order.queue:
                 self._start(order.queue.popleft(), now)
                 continue
-            if not order.nodes or not order.nodes[0].released:
+            if not order.nodes or not order.nodes[0].released or order.halted():
                 break
             edge = order.edges[0] if order.edges else None
             if edge is not None and edge.sequence_id != order.entered_edge:

@@ -88,6 +88,25 @@ def test_a_robot_that_restarts_on_a_route_gets_the_rest_of_it_as_a_new_order_and
     assert (dispatcher.node("r1"), dispatcher.node("r2")) == (MissionState.COMPLETED, MissionState.RUNNING)
 
 
+def test_a_restarted_robot_drives_only_the_rest_of_a_route_that_had_a_route_update() -> None:
+    """The resumed order is the updated route's rest, not a stale one: no cancel, no drive from the start."""
+    updated = {"waypoints": [{"x": x, "y": 1.0, "theta": 0.0, "map_id": "map"} for x in (1.0, 2.0, 3.0)]}
+    dispatcher = Dispatcher(mission(R1, update_nodes={"r1": updated}), settings=STALL_SETTINGS)
+    dispatcher.step(robot_state())
+    dispatcher.step(on_order(dispatcher.order, 2), after=1.0)
+    assert waypoints(dispatcher.order) == [(1.0, 1.0), (2.0, 1.0), (3.0, 1.0)]
+
+    [resumed] = orders_sent(dispatcher.step(RESTARTED, after=2.0))
+    assert waypoints(resumed) == [(2.0, 1.0), (3.0, 1.0)]
+
+    result = dispatcher.step(on_order(resumed, 0), after=1.0)
+
+    assert (orders_sent(result), cancel_actions(result.actions)) == ([], [])
+    assert dispatcher.node("r1") == MissionState.RUNNING
+    result = dispatcher.step(finished(resumed), after=5.0)
+    assert dispatcher.node("r1") == MissionState.COMPLETED
+
+
 def test_a_robot_that_restarts_during_a_running_action_fails_the_leaf_and_the_fallback_runs() -> None:
     dispatcher = Dispatcher(mission(selector("s"), action("a", parent="s"), route("f", parent="s")))
     dispatcher.step(robot_state())
@@ -111,6 +130,22 @@ def test_an_instant_action_a_restarted_robot_never_confirmed_is_sent_again() -> 
     result = dispatcher.step(RESTARTED, after=SETTINGS.instant_action_resend.total_seconds())
 
     assert [a.action_type for a in instant_actions_sent(result)] == [ActionType.START_PAUSE]
+
+
+def test_an_instant_action_a_restarted_robot_had_running_is_sent_again_at_once() -> None:
+    dispatcher = on_first_route()
+    pause = instant_action(ActionType.START_PAUSE, status=ActionStatus.RUNNING.value, sent_at=dispatcher.now)
+    dispatcher.actions = [pause]
+
+    holding = dispatcher.step(on_order(dispatcher.order, 2), after=2.0)
+    assert instant_actions_sent(holding) == []  # a robot on an order may have dropped older action states
+    late = dispatcher.step(RESTARTED, after=0.5, arrived_at=pause.sent_at + timedelta(seconds=0.5))
+    assert instant_actions_sent(late) == []  # a state that may have left the robot before the action
+
+    result = dispatcher.step(RESTARTED, after=0.5)
+
+    assert [a.action_id for a in instant_actions_sent(result)] == [pause.action_id]
+    assert dispatcher.step(RESTARTED, after=0.5).messages == []  # once; then after the resend period
 
 
 NOT_LOST: dict[str, Callable[[Dispatcher], None]] = {
@@ -154,12 +189,17 @@ def test_an_order_the_robot_never_took_is_sent_again_identically_not_anew() -> N
 # --- the robot took an order and does not execute it -------------------------------------------------------
 
 
-def test_an_order_taken_and_not_executed_is_canceled_and_the_rest_sent_anew() -> None:
+def standing_on_the_first_waypoint() -> tuple[Dispatcher, OrderContent, State]:
+    """A one-route mission whose robot took the order and stands at its first waypoint, a second ago."""
     dispatcher = Dispatcher(mission(R1), settings=STALL_SETTINGS)
     dispatcher.step(robot_state())
-    order = dispatcher.order
-    still = on_order(order, 2)
+    still = on_order(dispatcher.order, 2)
     dispatcher.step(still, after=1.0)
+    return dispatcher, dispatcher.order, still
+
+
+def test_an_order_taken_and_not_executed_is_canceled_and_the_rest_sent_anew() -> None:
+    dispatcher, order, still = standing_on_the_first_waypoint()
     assert not dispatcher.step(still, after=29.0).messages
 
     result = dispatcher.step(still, after=1.0)
@@ -174,6 +214,24 @@ def test_an_order_taken_and_not_executed_is_canceled_and_the_rest_sent_anew() ->
     [resumed] = orders_sent(result)
     assert resumed.order_id == "m1-n0-r1" and waypoints(resumed) == [(2.0, 0.0), (3.0, 0.0)]
     assert dispatcher.node("r1") == MissionState.RUNNING
+
+
+def test_a_stalled_order_whose_cancel_the_robot_never_confirms_fails_its_leaf_after_another_period() -> None:
+    dispatcher, order, still = standing_on_the_first_waypoint()
+    dispatcher.step(still, after=30.0)
+    assert cancel_actions(dispatcher.actions)
+    assert dispatcher.mission.progress_seen_at == dispatcher.now  # beat's wake-up once the cancel is overdue
+
+    dispatcher.step(still, after=29.0)  # the cancel re-sent, still unconfirmed: the leaf waits
+    assert dispatcher.node("r1") == MissionState.RUNNING
+
+    dispatcher.step(still, after=1.0)
+
+    assert dispatcher.node("r1") == MissionState.FAILED and dispatcher.mission.progress_seen_at is None
+    reason = faults.unconfirmed_reason(order.order_id, 0, 30)
+    assert (
+        dispatcher.mission.node_status["r1"]["error_msg"] == reason and "nor confirmed its cancel" in reason
+    )
 
 
 def test_a_stalled_action_fails_once_the_cancel_is_confirmed() -> None:
@@ -309,6 +367,8 @@ def play(events: list[tuple[float, str]]) -> Iterator[tuple[Dispatcher, str, dic
     dispatcher.step(robot_state())
     reached = 0
     for after, kind in events:
+        if dispatcher.mission.order is None:
+            return  # the leaf failed: a cancel never confirmed for a stall period (`cancel_overdue`)
         if kind == "progress":
             reached = min(reached + 2, 6)
         arrived_at = dispatcher.mission.order_sent_at if kind == "early empty" else None

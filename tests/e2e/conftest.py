@@ -15,6 +15,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -126,6 +127,18 @@ class Process:
         return self.log.read_text(errors="replace")
 
 
+@contextmanager
+def running(process: Process) -> Iterator[Process]:
+    """`process` (a robot stack of a third party, say) started while the block runs, then stopped; its output
+    printed, for the test's report."""
+    process.start()
+    try:
+        yield process
+    finally:
+        process.stop()
+        print(process.output())
+
+
 @dataclass
 class Stack:
     env: dict[str, str]
@@ -147,6 +160,24 @@ class Stack:
     def stop(self) -> None:
         for process in self.processes.values():
             process.stop()
+
+    @contextmanager
+    def reconfigured(self, *names: str, **overrides: str) -> Iterator[None]:
+        """The processes `names` (worker, beat ...) restarted with more settings while the block runs, then
+        again as before: a setting for a few tests only, without a second stack on the same database."""
+        for name in names:
+            self._replace(name, {**self.env, **overrides})
+        try:
+            yield
+        finally:
+            for name in names:
+                self._replace(name, self.env)
+
+    def _replace(self, name: str, env: dict[str, str]) -> None:
+        old = self.processes[name]
+        old.stop()
+        self.processes[name] = Process(name, old.argv, env, old.log)
+        self.processes[name].start()
 
 
 class Recorder:

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from django.conf import settings
 
-from tests.e2e.conftest import Process
+from tests.e2e.conftest import Process, running
 from tests.e2e.helpers import (
     action,
     create_robot,
@@ -126,25 +126,22 @@ def vda5050_lib(tmp_path_factory) -> Path:
 @contextmanager
 def vda5050_lib_agv(robot: str, stack, node_modules: Path, tmp_path: Path) -> Iterator[Process]:
     """The real vda-5050-lib 1.4.0 virtual AGV as robot `robot` on the test broker, while the block runs."""
-    agv = Process(
-        "vda-5050-lib",
-        [
-            "node",
-            str(Path(__file__).with_name("npm") / "vda5050_lib_agv.js"),
-            f"mqtt://{settings.MQTT_HOST}:{settings.MQTT_PORT}",
-            "uagv",
-            "RobotCompany",
-            robot,
-        ],
-        {**stack.env, "NODE_PATH": str(node_modules)},
-        tmp_path / "agv.log",
-    )
-    agv.start()
-    try:
+    with running(
+        Process(
+            "vda-5050-lib",
+            [
+                "node",
+                str(Path(__file__).with_name("npm") / "vda5050_lib_agv.js"),
+                f"mqtt://{settings.MQTT_HOST}:{settings.MQTT_PORT}",
+                "uagv",
+                "RobotCompany",
+                robot,
+            ],
+            {**stack.env, "NODE_PATH": str(node_modules)},
+            tmp_path / "agv.log",
+        )
+    ) as agv:
         yield agv
-    finally:
-        agv.stop()
-        print(agv.output())
 
 
 def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting_changed(
@@ -152,7 +149,7 @@ def test_the_real_vda_5050_lib_1_4_agv_cancels_a_running_mission_with_no_setting
 ):
     robot = unique("npmagv")
     with vda5050_lib_agv(robot, stack, vda5050_lib, tmp_path):
-        create_robot(api, robot)
+        create_robot(api, robot, vda5050={"interface_name": "uagv"})  # as the AGV runs
         mission = unique("far")
         post_mission(api, mission, robot, [route("far", (60, 0))])
         wait_mission_where(api, mission, lambda status: status["state"] == "RUNNING")
@@ -172,7 +169,7 @@ def test_the_real_vda_5050_lib_1_4_agv_takes_the_next_route_as_an_order_update(
     """Routes without stops against a real stack: it stitches the update at the first route's last node."""
     robot = unique("npmroutes")
     with vda5050_lib_agv(robot, stack, vda5050_lib, tmp_path):
-        create_robot(api, robot)
+        create_robot(api, robot, vda5050={"interface_name": "uagv"})  # as the AGV runs
         mission = unique("two")
         with tapped(robot) as tap:
             post_mission(api, mission, robot, [route("a", (3, 0)), route("b", (3, 3))])

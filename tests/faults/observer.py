@@ -22,6 +22,7 @@ class Observer:
 
     def __init__(self, port: int, host: str = "127.0.0.1") -> None:
         self.messages: list[WireMessage] = []
+        self._poses: dict[str, tuple[float, float, float]] = {}  # serial -> the latest state's x, y, theta
         self._blind: list[Window] = []
         self._lost_at: float | None = None
         self._closing = False
@@ -64,8 +65,11 @@ class Observer:
 
     def _on_message(self, client: mqtt.Client, userdata: Any, message: mqtt.MQTTMessage) -> None:
         record = WireMessage.from_payload(time.time(), message.topic, message.payload)
+        position = (record.data or {}).get("agvPosition") if record.kind == "state" else None
         with self._lock:
             self.messages.append(record)
+            if isinstance(position, dict):
+                self._poses[record.serial] = (position["x"], position["y"], position.get("theta", 0.0))
 
     def blind(self) -> list[Window]:
         """The intervals without a subscription so far (one still open ends now)."""
@@ -74,6 +78,11 @@ class Observer:
                 [Window(self._lost_at, time.time(), "observer reconnecting")] if self._lost_at else []
             )
             return [*self._blind, *open_window]
+
+    def poses(self) -> dict[str, tuple[float, float, float]]:
+        """Where each robot's latest state put it: a restarted robot starts there (fault kind "simulator")."""
+        with self._lock:
+            return dict(self._poses)
 
     def snapshot(self) -> list[WireMessage]:
         with self._lock:

@@ -24,7 +24,8 @@ from tests.faults.observer import Observer
 from tests.faults.stack import Stack, StackConfig, port_open, wait_until
 
 SEED_ENV = "FLEET_FAULT_SEED"
-KINDS = ("api", "bridge", "worker", "beat", "notify", "postgres", "redis", "broker")
+# "simulator": every robot restarts (SIGKILL, then a fresh simulator with the robots where they last stood)
+KINDS = ("api", "bridge", "worker", "beat", "notify", "postgres", "redis", "broker", "simulator")
 # A POST must get through within this long, faults or not (a fault keeps a service down 5 s at most).
 POST_GIVE_UP_SECONDS = 90.0
 
@@ -228,6 +229,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         )
         outcome.durations["setup"] = time.time() - t0
         observer = Observer(stack.mqtt_port)
+        stack.poses = observer.poses
         try:
             observer.wait_subscribed()
             api = Api(stack.api_url, stack.api_token)
@@ -301,6 +303,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
     broker_down = checks.impaired_windows(events, grace=0, components=("broker",))
     broker_excuse = [Window(w.start, w.end + config.reconnect_grace, "broker outage") for w in broker_down]
     posted_missions = [m.posted() for m in posted]
+    restarts = checks.impaired_windows(events, grace=0, components=("simulator",))
     origin = started
     outcome.results = [
         checks.check_missions(
@@ -309,10 +312,13 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
             waited=waited,
             robots=robots_final,
             unposted=poster.unposted + pre.unposted,
+            restarts=restarts,
         ),
         checks.check_order_copies(messages, origin),
         checks.check_no_order_while_busy(messages, [*blind, *broker_down], origin),
-        checks.check_leaves(posted_missions, final, messages, [*blind, *broker_down], origin),
+        checks.check_leaves(
+            posted_missions, final, messages, [*blind, *broker_down], origin, restarts=restarts
+        ),
         checks.check_header_ids(
             messages, [*blind, *broker_excuse], since=observer.started_at, origin=origin, events=events
         ),

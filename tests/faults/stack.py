@@ -21,7 +21,7 @@ import tempfile
 import threading
 import time
 import urllib.request
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -311,6 +311,8 @@ class Stack:
         self._watcher: threading.Thread | None = None
         self.env = self._env()
         self.api_token = ""  # the load's bearer token, made in the stack's database (_database)
+        # where each robot last reported itself (serial -> x, y, theta), for restarts: the run's observer
+        self.poses: Callable[[], Mapping[str, tuple[float, float, float]]] = dict
 
     @property
     def api_url(self) -> str:
@@ -388,31 +390,31 @@ class Stack:
         self._add("worker", worker_command("steps", "faults-steps", 12))
         self._add("notify", worker_command("notify", "faults-notify", 8))
         self._add("beat", [CELERY, "-A", "fleet", "beat", "--schedule", str(self.tmp / "beat-schedule")])
-        self._add(
-            "simulator",
-            [
-                PYTHON,
-                "-m",
-                "simulator",
-                "--count",
-                str(self.config.robots),
-                "--name-prefix",
-                self.config.name_prefix,
-                "--mqtt_host",
-                "127.0.0.1",
-                "--mqtt_port",
-                str(self.mqtt_port),
-                "--speed",
-                str(self.config.speed),
-                "--tick_period",
-                "0.1",
-                "--state_period",
-                "1.0",
-                "--visualization_period",
-                "0",
-            ],
-        )
+        self._add("simulator", self._simulator_command(["--count", str(self.config.robots)]))
         wait_until(self.api_ready, "the API's /health", timeout=90, period=0.3)
+
+    def _simulator_command(self, robots: list[str]) -> list[str]:
+        """The simulator of our robots (`robots`: `--count N`, or `--robots` specs with start poses)."""
+        return [
+            PYTHON,
+            "-m",
+            "simulator",
+            *robots,
+            "--name-prefix",
+            self.config.name_prefix,
+            "--mqtt_host",
+            "127.0.0.1",
+            "--mqtt_port",
+            str(self.mqtt_port),
+            "--speed",
+            str(self.config.speed),
+            "--tick_period",
+            "0.1",
+            "--state_period",
+            "1.0",
+            "--visualization_period",
+            "0",
+        ]
 
     def api_ready(self) -> bool:
         try:
@@ -457,12 +459,23 @@ class Stack:
                 self.processes[name].kill()
 
     def bring_up(self, name: str) -> None:
+        """Start it again; the simulator's robots (restarted: no order, headerIds from 0) where `poses`
+        last saw them."""
         with self.lock:
             if name == "postgres":
                 self.postgres.start()
             else:
+                if name == "simulator":
+                    self.processes[name].argv = self._simulator_command(["--robots", *self._robot_specs()])
                 self.processes[name].start()
             self.down.discard(name)
+
+    def _robot_specs(self) -> list[str]:
+        poses = self.poses()
+        return [
+            "{},{},{},{}".format(robot.name, *poses.get(robot.name, (robot.x, robot.y, robot.theta)))
+            for robot in self.robots
+        ]
 
     def running_now(self) -> dict[str, bool]:
         with self.lock:

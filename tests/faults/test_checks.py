@@ -121,6 +121,25 @@ def test_missions_lost_failed_or_stuck_fail():
     assert "m4 could not be posted" in text
 
 
+def test_a_mission_failed_by_a_robot_restart_during_an_action_passes_only_then():
+    failed = mission_object("FAILED", {}, start=10, end=20)
+    failed["status"]["failure_reason"] = (
+        "Robot no longer holds order m1-n0-r0 (it may have restarted); the action may or may not have run"
+    )
+    other = mission_object("FAILED", {}, start=10, end=20)
+    other["status"]["failure_reason"] = "Action failure"
+
+    def check(mission: dict, *restarts: Window) -> checks.CheckResult:
+        return checks.check_missions([M1], {"m1": mission}, waited=10, restarts=restarts)
+
+    restart = Window(15, 17, "simulator")
+    assert check(failed, restart).ok
+    assert "1 FAILED as their robot restarted during an action" in check(failed, restart).notes
+    assert not check(failed).ok  # no restart
+    assert not check(failed, Window(30, 31, "simulator")).ok  # a restart after it ended
+    assert not check(other, restart).ok  # another failure
+
+
 # --- 2. order copies ----------------------------------------------------------------------------------
 
 
@@ -201,6 +220,35 @@ def test_leaf_after_a_later_one_or_twice_fails():
     text = "\n".join(result.problems)
     assert "order m1-n0-r1 for leaf a came after an order for the later leaf n1" in text
     assert "leaf a reached 2 times, orders ['m1-n0-r0', 'm1-n0-r1']" in text
+
+
+def test_a_leaf_resumed_after_its_robot_restarted_is_not_reached_twice():
+    messages = [
+        order(1, "r1", "m1-n0-r0", 0),
+        order(5, "r1", "m1-n0-r1", 1),  # the rest of the route, from where the restarted robot stood
+        order(8, "r1", "m1-n1-r0", 2),
+    ]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+
+    result = checks.check_leaves([M1], final, messages, [], restarts=[Window(3, 4, "simulator")])
+    assert result.ok, result.problems
+    assert "1 leaves resumed after their robot restarted" in result.notes
+    assert not checks.check_leaves([M1], final, messages, [], restarts=[Window(6, 7, "simulator")]).ok
+
+
+def test_a_leaf_resumed_after_its_robot_restarted_may_follow_the_next_leaf_sent_ahead():
+    messages = [
+        order(1, "r1", "m1-n0-r0", 0),
+        ahead(2, "r1", "m1-n0-r0", 1, "m1-n1-r0"),
+        taken(2.5, "r1", "m1-n0-r0", 1),
+        order(5, "r1", "m1-n0-r1", 2),  # restarted before the end of the first route: its rest
+        order(8, "r1", "m1-n1-r1", 3),  # the next route, its own order
+    ]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+
+    assert checks.check_leaves([M1], final, messages, [], restarts=[Window(3, 4, "simulator")]).ok
+    text = "\n".join(checks.check_leaves([M1], final, messages, []).problems)
+    assert "order m1-n0-r1 for leaf a came after an order for the later leaf n1" in text
 
 
 def ahead(t: float, serial: str, order_id: str, header_id: int, leaf: str, update: int = 1) -> WireMessage:

@@ -6,14 +6,15 @@ from __future__ import annotations
 import orjson
 
 from simulator.config import Stack, parse_robot_spec
-from tests.simulator.conftest import RobotHarness, keep_busy
+from tests.simulator.conftest import RobotHarness, keep_busy, route
 from vda5050.codec import encode
 from vda5050.models import ActionStatus, BlockingType, InstantActionsContent
-from vda5050.orders import cancel_order, instant_action
+from vda5050.orders import Waypoint, cancel_order, instant_action, order_update
 from vda5050.topics import Topic
 
 SPEC_3 = "carter03,0,0,0,map,0,20,RobotCompany,carter03,CARRIER,3.0.0"
 SPEC_LIB = "npm01,0,0,0,map,0,20,RobotCompany,npm01,CARRIER,2.0.0,vda-5050-lib-1.4"
+SPEC_SDK = "sdk01,0,0,0,map,0,20,RobotCompany,sdk01,CARRIER,2.1.0,vda5050-sdk-0.2"
 
 
 def test_a_robot_spec_names_its_version_and_stack() -> None:
@@ -93,3 +94,22 @@ def test_a_vda_5050_lib_1_4_robot_refuses_a_cancel_without_an_order_by_an_error_
     [error] = h.state.errors
     assert error.error_type == "noOrderToCancel"
     assert ("actionId", "c1") in [(r.reference_key, r.reference_value) for r in error.error_references or ()]
+
+
+def test_a_vda5050_sdk_0_2_robot_takes_an_update_and_stands_still_at_the_end_of_its_base() -> None:
+    h = RobotHarness(SPEC_SDK)
+    first = route((1, 0), (2, 0))
+    h.send_order(first)
+    h.send_order(order_update(first, waypoints=[Waypoint(2, 1, 0.0, "map")], ids="m1-n1-r0"))
+    assert h.state.order_update_id == 1 and [n.sequence_id for n in h.state.node_states] == [2, 4, 6]
+
+    h.run(20)
+
+    state = h.state
+    assert (state.last_node_sequence_id, state.agv_position.x, state.agv_position.y) == (4, 2.0, 0.0)
+    assert not state.driving and not state.errors and [n.sequence_id for n in state.node_states] == [6]
+
+    h.send_actions(cancel_order("c"))  # what ends it: the rest as a new order is driven
+    assert h.action_state("c").action_status == ActionStatus.FINISHED and not h.state.node_states
+    h.send_order(route((2, 1), start=(2, 0), mission="m2"))
+    assert h.run_until(lambda s: s.last_node_sequence_id == 2 and not s.driving).agv_position.y == 1.0
