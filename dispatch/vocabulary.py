@@ -5,6 +5,15 @@ Pure Python (no Django, paho or Redis imports), so the pure modules (``dispatch.
 ``dispatch.step``) use these enums directly, and the Django choices (``missions.choices``,
 ``robots.choices``) are built from them. Members are ``str``: they compare equal to, hash as and
 serialize to the plain strings stored in the database and in JSON.
+
+Two words the whole house uses in one sense each:
+- *spec*: what the API sets on an object (a robot's labels and battery levels, a mission's tree, a
+  station's pose);
+- *status*: what the dispatch engine and the robot report about an object: a robot's or a mission's
+  `status` in the API, a tree's node states (`node_status`), an instant action's status as the robot
+  reports it (VDA 5050 `actionStatus`), the robots' reported columns the bridge writes
+  (`workers/bridge/status_writer.py`, `robots/status.py`). A state is one value of a status: the
+  mission's `state`, the robot's `state`.
 """
 
 from enum import StrEnum
