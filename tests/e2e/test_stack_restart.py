@@ -10,7 +10,6 @@ that no other bridge, worker or beat acts on the test database."""
 
 import signal
 import time
-import urllib.request
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -30,6 +29,7 @@ from tests.e2e.helpers import (
     tapped,
     wait_mission,
 )
+from tests.granian_server import healthy
 from tests.private_redis import free_port
 from tests.waiting import wait_for
 
@@ -69,7 +69,9 @@ class MakeRun:
             self.simulator.argv = self._simulator(robots)
         for process in self.processes:
             process.start()
-        wait_for(self.api_serving, timeout=90, message="the API's /health")
+        wait_for(
+            lambda: healthy(f"http://127.0.0.1:{self.api_port}"), timeout=90, message="the API's /health"
+        )
 
     def stop(self) -> None:
         """As honcho on Ctrl-C: SIGTERM to every process at once, SIGKILL to those still running after
@@ -81,13 +83,6 @@ class MakeRun:
             while process.running() and time.monotonic() < deadline:
                 time.sleep(0.1)
             process.kill()
-
-    def api_serving(self) -> bool:
-        try:
-            with urllib.request.urlopen(f"http://127.0.0.1:{self.api_port}/health", timeout=2) as response:
-                return response.status == 200
-        except OSError:
-            return False
 
 
 @pytest.fixture
