@@ -49,7 +49,8 @@ logger = logging.getLogger(__name__)
 # The step's reads are the hot path of the whole system. As plain SQL with only the columns the step needs,
 # read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
 # more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
-# lock what they read until the step commits.
+# lock what they read until the step commits. A robot's next mission is its queue's highest-priority one,
+# the first queued among equals (a running one is never preempted: it comes first whatever its priority).
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
@@ -70,7 +71,7 @@ MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name
 CURRENT_MISSIONS_SQL = f"""
     SELECT {", ".join(mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
     WHERE robot = %s AND state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
-    ORDER BY state <> '{MissionState.RUNNING}', queue_position LIMIT %s FOR UPDATE
+    ORDER BY state <> '{MissionState.RUNNING}', priority DESC, queue_position LIMIT %s FOR UPDATE
 """
 # The fields a step writes; the record's others are the mission's spec.
 STEP_STATUS_FIELDS = (
@@ -334,7 +335,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
 
 
 def _current_missions(robot: str, *, count: int) -> list[MissionRecord]:
-    """The robot's RUNNING mission, then its queue in FIFO order, locked."""
+    """The robot's RUNNING mission, then its queue by priority (highest first), FIFO among equals, locked."""
     with connection.cursor() as cursor:
         cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
         return _mission_records(cursor.fetchall())

@@ -20,7 +20,7 @@ from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tr
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
 from kit.api.rows import lock_row
-from kit.wake import request_steps
+from kit.wake import request_assignment, request_steps
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.models import Mission
 from missions.rows import MISSION_FIELDS, mission_columns, mission_db_values, mission_row_delete
@@ -34,20 +34,28 @@ CANCEL_FIELDS = ("state", "end_timestamp", "failure_category", "needs_canceled",
 
 
 def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Mission:
-    """A new PENDING mission, queued behind the robot's other missions (the robot need not exist yet).
+    """A new PENDING mission, queued behind the robot's other missions (the robot need not exist yet), or,
+    without a robot, unbound: assignment (`missions_assign`) binds it to a free capable robot.
 
-    `spec` is in the API's shape (robot, mission_tree, timeout, deadline, needs_canceled, update_nodes).
+    `spec` is in the API's shape (robot, mission_tree, timeout, deadline, needs_canceled, update_nodes,
+    priority, robot_selector).
     The tree is stored normalized: every node named (unnamed ones by their index) with its parent and its
     one kind. A mission created with needs_canceled is created CANCELED. `actor` (who asks, as in every
     service here) is recorded with the write.
     """
     mission_name = object_name_for_create(name=name, prefix=prefix, what="Mission name")
-    robot = spec["robot"]
-    object_name_check(robot, what="Robot name")
+    robot = spec.get("robot")
+    selector = spec.get("robot_selector")
+    if robot is not None:
+        object_name_check(robot, what="Robot name")
+        if selector is not None:
+            raise UsageError("Only a mission without robot has a robot_selector.")
     tree = _tree_parse(spec["mission_tree"])
     mission = Mission(
         name=mission_name,
         robot=robot,
+        priority=spec.get("priority", 0),
+        robot_selector=None if selector is None else _plain(selector),
         mission_tree=[
             {"name": node.name, "parent": node.parent, node.kind: node.params} for node in tree.nodes
         ],
@@ -65,7 +73,10 @@ def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Ma
         queued_behind_others = _mission_insert(mission, actor=actor)
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
-    if not queued_behind_others:
+    if mission.robot is None:
+        if mission.state == MissionState.PENDING:
+            request_assignment()
+    elif not queued_behind_others:
         request_steps([mission.robot])
     return mission
 
@@ -111,7 +122,7 @@ def mission_cancel(*, actor: str, mission: Mission) -> Mission:
             locked.needs_canceled = True
         locked.save(update_fields=[*CANCEL_FIELDS, "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_CANCEL, object_name=locked.name)
-        request_steps([locked.robot])
+        _wake(locked)
     return locked
 
 
@@ -122,7 +133,7 @@ def mission_delete(*, actor: str, mission: Mission) -> Mission | None:
     with transaction.atomic():
         locked = lock_row(mission)
         write_record(actor=actor, action=WriteAction.MISSION_DELETE, object_name=locked.name)
-        request_steps([locked.robot])
+        _wake(locked)
         if locked.state == MissionState.RUNNING:
             locked.lifecycle = Lifecycle.PENDING_DELETE
             locked.needs_canceled = True
@@ -147,8 +158,14 @@ def mission_update_routes(
         locked.update_nodes = {**(locked.update_nodes or {}), **_plain(update_nodes)}
         locked.save(update_fields=["update_nodes", "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
-        request_steps([locked.robot])
+        _wake(locked)
     return locked
+
+
+def _wake(mission: Mission) -> None:
+    """Step the mission's robot; an unbound mission has none to step (assignment reads it afresh)."""
+    if mission.robot is not None:
+        request_steps([mission.robot])
 
 
 def _tree_parse(mission_tree: list[Mapping[str, Any]]) -> Tree:
@@ -211,7 +228,7 @@ def mission_notify_finished(*, mission: str, node: str, success: bool, error_msg
         if not success:
             locked.failure_reason = error_msg
         locked.save(update_fields=["node_status", "failure_reason", "updated_at"])
-        request_steps([locked.robot])
+        _wake(locked)
 
 
 # queue_position is left to its database default: the next value of the queue sequence (NextQueuePosition).
