@@ -23,11 +23,14 @@ from dispatch.held import FINAL
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.step import step
 from kit.db import jsonb, pipelined_transaction
+from kit.wake import request_assignment
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.rows import (
     MISSION_FIELDS,
+    RELEASE_SQL,
     ROBOT_QUEUE_LOCK_SQL,
+    binding_time,
     mission_columns,
     mission_db_values,
     mission_row_delete,
@@ -111,6 +114,7 @@ class StepOutcome:
     notifies: list[tuple[str, str]] = field(default_factory=list)
     finished: list[MissionRecord] = field(default_factory=list)
     rejections: int = 0
+    released: list[str] = field(default_factory=list)  # missions given back to assignment
     header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
     # What to publish, in this order: `messages` encoded, after those of an earlier step that may not
     # have gone out (`_wire_messages`).
@@ -135,7 +139,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
 
 def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> bool:
     """One transaction of a step, adding to `outcome`; True if the robot needs another one."""
-    first = len(outcome.messages)
+    first, released = len(outcome.messages), len(outcome.released)
     # Open across the transaction: the look at the queue is read once it has committed, from the reply
     # that also brings the COMMIT's (reading it inside would cost a round trip of its own).
     with (
@@ -152,12 +156,19 @@ def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> b
             if end is StepEnd.QUEUE_RAN_DRY:
                 lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name])
                 queue_cursor.execute(QUEUE_GREW_SQL, [name])
+        if len(outcome.released) > released:
+            request_assignment()  # committed: another robot may take them
         if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
             outcome.header_ids.clear()
             outcome.wire.clear()
             transaction.on_commit(lambda: livestate.forget(name))
             return False
-        return end is StepEnd.QUEUE_RAN_DRY and queue_cursor.fetchone()[0]
+        if end is not StepEnd.QUEUE_RAN_DRY:
+            return False
+        queue_grew, unbound_wait = queue_cursor.fetchone()
+        if not queue_grew and unbound_wait:
+            request_assignment()  # the robot is free: an unbound mission may be its
+        return queue_grew
 
 
 @dataclass
@@ -235,10 +246,12 @@ class StepEnd(Enum):
 
 
 # Whether the robot has a queued mission, read under the robot's queue lock (ROBOT_QUEUE_LOCK_SQL) by a step
-# that ended the robot's last mission.
+# that ended the robot's last mission; and whether unbound missions wait (the robot, free, may take one).
 QUEUE_GREW_SQL = f"""
     SELECT EXISTS (
         SELECT 1 FROM {Mission._meta.db_table} WHERE robot = %s AND state = '{MissionState.PENDING}'
+    ), EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} WHERE robot IS NULL AND state = '{MissionState.PENDING}'
     )
 """
 
@@ -322,6 +335,9 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
                 outcome.finished.append(result.mission)
             if result.delete_mission:
                 mission_row_delete(mission.name)
+            if result.release is not None:
+                _release(name, mission.name, result.release)
+                outcome.released.append(mission.name)
         if result.delete_robot:
             robot_rows_delete(name)
             return StepEnd.ROBOT_DELETED, wire
@@ -332,6 +348,13 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     if view.state != robot_state:
         Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
     return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
+
+
+def _release(robot: str, mission: str, reason: str) -> None:
+    """Unbind the mission assignment bound to the robot (`StepResult.release`)."""
+    now = timezone.now()
+    with connection.cursor() as cursor:
+        cursor.execute(RELEASE_SQL, [now, binding_time(now), reason, mission, robot])
 
 
 def _current_missions(robot: str, *, count: int) -> list[MissionRecord]:

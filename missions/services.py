@@ -16,6 +16,7 @@ from django.utils import timezone
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
+from dispatch.assignment import assign
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
@@ -23,7 +24,17 @@ from kit.api.rows import lock_row
 from kit.wake import request_assignment, request_steps
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.models import Mission
-from missions.rows import MISSION_FIELDS, mission_columns, mission_db_values, mission_row_delete
+from missions.rows import (
+    MISSION_FIELDS,
+    RELEASE_ORPHANS_SQL,
+    ROBOT_DELETED,
+    binding_time,
+    mission_columns,
+    mission_db_values,
+    mission_row_delete,
+)
+from missions.selectors import assignment_inputs
+from robots.models import Robot
 
 logger = logging.getLogger(__name__)
 
@@ -287,3 +298,85 @@ def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
                 timezone.now(),
             ],
         )
+
+
+# --- assignment: binding unbound missions to free capable robots (issue 41) -----------------------------
+
+# Both lock only rows no one else holds, so that runs never wait for each other (nor deadlock) nor for a
+# step: what they skip waits for the next run, which the run asks for.
+LOCK_FREE_ROBOTS_SQL = f"""
+    SELECT name FROM {Robot._meta.db_table}
+    WHERE name = ANY(%s) AND online AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY name FOR UPDATE SKIP LOCKED
+"""
+LOCK_UNBOUND_SQL = f"""
+    SELECT name FROM {Mission._meta.db_table}
+    WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
+      AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY name FOR UPDATE SKIP LOCKED
+"""
+# Its snapshot is taken after the locks: a binding another run committed before this one locked the robot
+# is seen, and the robot is not bound twice. `robot IS NULL` again: a mission is never bound twice.
+BIND_SQL = f"""
+    UPDATE {Mission._meta.db_table} AS m
+    SET robot = b.robot, waiting_reason = NULL, updated_at = %s,
+        assignment = m.assignment || jsonb_build_array(
+            jsonb_build_object('robot', b.robot, 'bound_at', %s::text, 'released_at', NULL, 'reason', NULL)
+        )
+    FROM unnest(%s::varchar[], %s::varchar[]) AS b(name, robot)
+    WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
+      AND NOT EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} o
+        WHERE o.robot = b.robot AND (
+            o.state = '{MissionState.RUNNING}' OR o.state = '{MissionState.PENDING}' AND o.assignment <> '[]'
+        )
+      )
+    RETURNING m.name, m.robot
+"""
+WAITING_REASONS_SQL = f"""
+    UPDATE {Mission._meta.db_table} AS m SET waiting_reason = w.reason, updated_at = %s
+    FROM unnest(%s::varchar[], %s::text[]) AS w(name, reason)
+    WHERE m.name = w.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
+      AND m.waiting_reason IS DISTINCT FROM w.reason
+"""
+
+
+def missions_assign() -> dict[str, str]:
+    """Bind the unbound queued missions to free capable robots (`dispatch.assignment.assign`), record why
+    the others wait, and step the robots bound; returns the bindings made (mission -> robot).
+
+    The read takes no locks; the binding, in one transaction, locks the robots and missions it binds
+    (SKIP LOCKED) and binds only a mission still unbound to a robot still free, so that whatever number of
+    runs go at once, a mission is bound once and a robot gets one mission. A binding skipped for a lock
+    or a race is tried again by the next run, asked for at once.
+    """
+    now = timezone.now()
+    with connection.cursor() as cursor:
+        cursor.execute(RELEASE_ORPHANS_SQL, [now, binding_time(now), ROBOT_DELETED])
+    inputs = assignment_inputs()
+    if not inputs.missions:
+        return {}
+    result = assign(inputs.missions, inputs.robots)
+    with transaction.atomic(), connection.cursor() as cursor:
+        bound: dict[str, str] = {}
+        if result.bindings:
+            cursor.execute(LOCK_FREE_ROBOTS_SQL, [sorted(set(result.bindings.values()))])
+            robots = {name for (name,) in cursor.fetchall()}
+            cursor.execute(LOCK_UNBOUND_SQL, [sorted(result.bindings)])
+            missions = [name for (name,) in cursor.fetchall() if result.bindings[name] in robots]
+            if missions:
+                cursor.execute(
+                    BIND_SQL,
+                    [now, binding_time(now), missions, [result.bindings[name] for name in missions]],
+                )
+                bound = dict(cursor.fetchall())
+        changed = {
+            name: reason for name, reason in result.waiting.items() if inputs.waiting_reasons[name] != reason
+        }
+        if changed:
+            cursor.execute(WAITING_REASONS_SQL, [now, list(changed), list(changed.values())])
+        if bound:
+            request_steps(sorted(set(bound.values())))
+        if len(bound) < len(result.bindings):
+            request_assignment()
+    return bound
