@@ -38,6 +38,8 @@ from robots.models import Robot
 
 logger = logging.getLogger(__name__)
 
+# A mission's priority: higher first in a robot's queue and in assignment.
+PRIORITY_MIN, PRIORITY_MAX = -1000, 1000
 # Mission states in which routes may still be updated.
 UPDATABLE_STATES = frozenset({MissionState.PENDING, MissionState.RUNNING})
 # Fields a cancel writes.
@@ -170,6 +172,25 @@ def mission_update_routes(
         locked.save(update_fields=["update_nodes", "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
         _wake(locked)
+    return locked
+
+
+def mission_prioritize(*, actor: str, mission: Mission, priority: int) -> Mission:
+    """Give a queued mission a new priority (within PRIORITY_MIN..PRIORITY_MAX): its place in its robot's
+    queue, or in assignment's, follows. A running or finished mission keeps its own (a UsageError)."""
+    if not PRIORITY_MIN <= priority <= PRIORITY_MAX:
+        raise UsageError(f"Priority must be within {PRIORITY_MIN}..{PRIORITY_MAX}, not {priority}.")
+    with transaction.atomic():
+        locked = lock_row(mission)
+        if locked.state != MissionState.PENDING:
+            raise UsageError(f"Mission {locked.name} is {locked.state}: only a queued one changes priority.")
+        locked.priority = priority
+        locked.save(update_fields=["priority", "updated_at"])
+        write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
+        if locked.robot is None:
+            request_assignment()
+        else:
+            _wake(locked)
     return locked
 
 

@@ -25,6 +25,7 @@ from kit.api.serializers import ObjectNameSerializer, Pose2DSerializer, SpecSeri
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
+from missions.services import PRIORITY_MAX, PRIORITY_MIN
 from missions.tuning import MAX_NOTIFY_TIMEOUT
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
@@ -209,10 +210,6 @@ def schema_constraints(result: dict, generator: Any, request: Any, public: bool)
 
 
 # --- the mission -------------------------------------------------------------------------------------------
-
-# A mission's priority: higher first in a robot's queue and in assignment.
-PRIORITY_MIN, PRIORITY_MAX = -1000, 1000
-
 
 def _names_field(help_text: str) -> serializers.ListField:
     return serializers.ListField(

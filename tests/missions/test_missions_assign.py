@@ -78,9 +78,8 @@ def test_reasons_follow_the_robots_state() -> None:
     assert Mission.objects.get(name="m1").waiting_reason == NONE_ONLINE
 
     Robot.objects.filter(name="r1").update(online=True)
-    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec={"robot": "r1", "mission_tree": [
-        {"route": {"waypoints": [{"x": 0, "y": 0}]}}
-    ]})
+    own = {"robot": "r1", "mission_tree": [{"route": {"waypoints": [{"x": 0, "y": 0}]}}]}
+    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec=own)
     Mission.objects.filter(name="own").update(state=MissionState.RUNNING)
     missions_assign()
     assert Mission.objects.get(name="m1").waiting_reason == ALL_BUSY
@@ -120,7 +119,7 @@ def test_many_runs_at_once_never_bind_a_mission_twice_nor_a_robot_twice() -> Non
             barrier.wait()
             for _ in range(3):
                 results.append(missions_assign())
-        except BaseException as error:  # noqa: BLE001 - reported below
+        except BaseException as error:  # reported below
             errors.append(error)
         finally:
             connection.close()
@@ -166,7 +165,8 @@ def test_a_named_mission_is_not_given_back_by_its_robot(make_robot) -> None:
     Robot.objects.filter(name=created.name).update(online=True)
     put_state(created, header_id=1, battery=5.0)
     route = {"route": {"waypoints": [{"x": 0, "y": 0}]}}
-    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec={"robot": created.name, "mission_tree": [route]})
+    spec = {"robot": created.name, "mission_tree": [route]}
+    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec)
 
     assert robot_step(name=created.name).released == []
     assert robot_of("m1") == created.name
