@@ -215,7 +215,7 @@ def _error_names(errors: Any) -> str:
 
 def mission_text(mission: dict[str, Any]) -> str:
     status = mission["status"]
-    robot = mission['robot'] or "none yet (unbound: assignment picks one)"
+    robot = mission["robot"] or "none yet (unbound: assignment picks one)"
     lines = [f"**{mission['name']}**", f"- State: {status['state']}", f"- Robot: {robot}"]
     labels = {
         "start_timestamp": "Started",

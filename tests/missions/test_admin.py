@@ -237,7 +237,7 @@ def test_priority_actions_change_a_queued_missions_priority_through_the_service(
 
     assert Mission.objects.get(name="queued").priority == 995
     assert Mission.objects.get(name="done").priority == 0
-    assert any(level == messages.ERROR for level, _ in sent_messages(response))
+    assert any(level == messages.WARNING for level, _ in sent_messages(response))
     response = admin_client.post(
         CHANGELIST, {"action": "raise_priority", "_selected_action": [queued.name]}, follow=True
     )
