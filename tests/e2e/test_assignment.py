@@ -66,9 +66,10 @@ def test_labels_beat_distance(api, simulator, unique):
 def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, simulator, unique):
     robot, = robots_at(api, simulator, unique, ("only", 0))
     busy = unique("busy")
-    post_unbound(api, busy, [action("work", time=2)])
+    post_unbound(api, busy, [action("work", time=5, should_fail=0)])
     assert bound_robot(api, busy) == robot
-    wait_mission(api, busy, {"RUNNING"})
+    started = wait_mission(api, busy, {"RUNNING", "COMPLETED", "FAILED", "CANCELED"})
+    assert started["status"]["state"] == "RUNNING", started
 
     low, high = unique("low"), unique("high")
     post_unbound(api, low, [route("go", (1, 0))])
