@@ -18,6 +18,7 @@ from access.models import WriteRecord
 from access.services import write_record, writes_via_now
 from dispatch.assignment import assign
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
+from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
 from kit.api.rows import lock_row
@@ -354,6 +355,17 @@ BIND_SQL = f"""
       )
     RETURNING m.name, m.robot
 """
+# An unbound mission still queued at its deadline never starts, as one of a robot's queue (the step's
+# rule, `dispatch.step`): no robot's step sees it, so assignment's run ends it.
+DEADLINE_UNBOUND_SQL = f"""
+    UPDATE {Mission._meta.db_table}
+    SET state = '{MissionState.FAILED}', end_timestamp = %s, updated_at = %s, waiting_reason = NULL,
+        failure_reason = %s, failure_category = '{FailureCategory.DEADLINE}',
+        node_status = node_status || jsonb_build_object(
+            '{ROOT}', jsonb_build_object('state', '{MissionState.FAILED}', 'error_msg', NULL)
+        )
+    WHERE robot IS NULL AND state = '{MissionState.PENDING}' AND deadline <= %s
+"""
 WAITING_REASONS_SQL = f"""
     UPDATE {Mission._meta.db_table} AS m SET waiting_reason = w.reason, updated_at = %s
     FROM unnest(%s::varchar[], %s::text[]) AS w(name, reason)
@@ -374,6 +386,7 @@ def missions_assign() -> dict[str, str]:
     now = timezone.now()
     with connection.cursor() as cursor:
         cursor.execute(RELEASE_ORPHANS_SQL, [now, binding_time(now), ROBOT_DELETED])
+        cursor.execute(DEADLINE_UNBOUND_SQL, [now, now, DEADLINE_PASSED, now])
     inputs = assignment_inputs()
     if not inputs.missions:
         return {}

@@ -3,6 +3,7 @@ step giving back a mission whose robot cannot take it (issue 41). Real PostgreSQ
 test transaction, as the workers run; the robots' rows are written as the bridge writes them."""
 
 import threading
+from datetime import timedelta
 from typing import Any
 
 import pytest
@@ -183,3 +184,14 @@ def test_missions_bound_to_a_deleted_robot_go_back_to_the_pool() -> None:
     mission = Mission.objects.get(name="m1")
     assert mission.robot is None
     assert mission.assignment[-1]["reason"] == "Robot was deleted"
+
+
+def test_an_unbound_mission_past_its_deadline_fails_and_is_never_bound() -> None:
+    robot("r1")
+    unbound("late", deadline=timezone.now() - timedelta(seconds=1))
+
+    assert missions_assign() == {}
+
+    mission = Mission.objects.get(name="late")
+    assert (mission.state, mission.failure_category, mission.robot) == (MissionState.FAILED, "DEADLINE", None)
+    assert mission.node_status["root"]["state"] == MissionState.FAILED
