@@ -229,7 +229,8 @@ def _error_names(errors: Any) -> str:
 
 def mission_text(mission: dict[str, Any]) -> str:
     status = mission["status"]
-    lines = [f"**{mission['name']}**", f"- State: {status['state']}", f"- Robot: {mission['robot']}"]
+    robot = mission["robot"] or "none yet (unbound: assignment picks one)"
+    lines = [f"**{mission['name']}**", f"- State: {status['state']}", f"- Robot: {robot}"]
     labels = {
         "start_timestamp": "Started",
         "end_timestamp": "Ended",
@@ -595,14 +596,16 @@ def get_mission(caller: Any, name: Annotated[Name, Field(description="The missio
 )
 def create_mission(
     caller: Any,
-    robot: Any,
     mission_tree: Any,
+    robot: Any = None,
     name: Any = None,
     prefix: Any = None,
     timeout: Any = None,
     deadline: Any = None,
     needs_canceled: Any = None,
     update_nodes: Any = None,
+    priority: Any = None,
+    robot_selector: Any = None,
 ) -> Answer:
     # Untyped here: the arguments are POST /mission's body, validated by its serializer alone (the
     # advertised schema is the API's, `create_mission_schema`). An argument sent as null is left out.
@@ -615,6 +618,8 @@ def create_mission(
         "deadline": deadline,
         "needs_canceled": needs_canceled,
         "update_nodes": update_nodes,
+        "priority": priority,
+        "robot_selector": robot_selector,
     }
     mission = _mission_create(caller, {key: value for key, value in arguments.items() if value is not None})
     return f"**Mission Created**\n\n{mission_text(mission)}\nTree:\n{_tree_text(mission)}", mission

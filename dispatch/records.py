@@ -68,6 +68,8 @@ class MissionRecord:
     # and when: the stall clock, and how far a route got when the robot lost its order.
     progress: dict[str, Any] | None = None
     progress_seen_at: datetime | None = None
+    # The bindings assignment made (issue 41): not empty for a mission posted without a robot.
+    assignment: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def done(self) -> bool:
@@ -116,3 +118,6 @@ class StepResult:
     # the robot drove to its end before a step saw it start), oldest first: stored before `mission`, so
     # every leaf is seen RUNNING, as when each leaf was sent in its own step.
     passed: list[MissionRecord] = field(default_factory=list)
+    # Why the robot gives back the queued mission assignment bound to it (offline, low battery, a FATAL
+    # error, being deleted): it is unbound again, for another robot.
+    release: str | None = None

@@ -222,6 +222,11 @@ def _try_start(
             category=FailureCategory.DEADLINE,
         )
         return
+    unfit = _why_unfit(robot, state)
+    if unfit is not None and mission.assignment:
+        result.release = unfit  # bound by assignment: another robot may run it now
+        mission.waiting_reason = unfit
+        return
     reason = _why_not_start(result, robot, state) or _maps_missing(state, mission)
     if reason is not None:
         mission.waiting_reason = reason
@@ -237,26 +242,37 @@ def _try_start(
 
 
 def _why_not_start(result: StepResult, robot: RobotView, state: State | None) -> str | None:
-    if robot.lifecycle != Lifecycle.ALIVE:
-        return "Robot is being deleted"
-    if not robot.online or state is None:
-        return "Robot is offline"
+    unfit = _why_unfit(robot, state)
+    if unfit is not None:
+        return unfit
+    assert state is not None  # a robot without a state is offline
     if result.robot_state == RobotState.TELEOP:
         return "Robot is in teleop"
     if _pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return "Waiting for the robot to cancel its previous order"
+    if not vda_state.may_receive_orders(state):
+        return f"Robot is in {state.operating_mode.value} mode"
+    if not vda_state.is_idle(state):
+        return "Robot is busy with an earlier order"
+    return None
+
+
+def _why_unfit(robot: RobotView, state: State | None) -> str | None:
+    """Why the robot cannot take a mission until something outside the mission changes: it is being
+    deleted, offline, below its critical battery level or reports a FATAL error of its own. A mission
+    assignment bound to it goes back to the pool (`StepResult.release`)."""
+    if robot.lifecycle != Lifecycle.ALIVE:
+        return "Robot is being deleted"
+    if not robot.online or state is None:
+        return "Robot is offline"
     charge = state.battery_state.battery_charge
     if charge < robot.battery_critical_level:
         return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
-    if not vda_state.may_receive_orders(state):
-        return f"Robot is in {state.operating_mode.value} mode"
     # A FATAL error about an earlier order ended that order's leaf; one about nothing in particular means
     # the robot itself cannot work until someone fixes it.
     fatal = [error for error in vda_state.fatal_errors(state) if not error.error_references]
     if fatal:
         return f"Robot reports a FATAL error: {_describe(fatal)}"
-    if not vda_state.is_idle(state):
-        return "Robot is busy with an earlier order"
     return None
 
 

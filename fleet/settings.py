@@ -339,6 +339,10 @@ DISPATCH_BEAT_PERIOD = env_float("FLEET_BEAT_PERIOD", 1.0)
 # How often beat looks for robots that finished their order while their mission did not move on (a step
 # lost to a crash); cheap, but it reads every running mission.
 DISPATCH_STALL_CHECK_SECONDS = env_float("FLEET_STALL_CHECK_SECONDS", 5.0)
+# How often beat runs assignment while unbound missions wait: the safety net under the wake-ups (a new
+# unbound mission, a robot freed, created, updated or back online), and the way robots freed otherwise
+# (charged, out of teleop) are found.
+ASSIGNMENT_CHECK_SECONDS = env_float("FLEET_ASSIGNMENT_CHECK_SECONDS", 3.0)
 # Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
 NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
 # The backoff is Celery's (`retry_backoff`), in whole seconds.
@@ -365,4 +369,5 @@ CELERY_BEAT_SCHEDULE = {
     "sweep": {"task": "fleet.sweep", "schedule": DISPATCH_BEAT_PERIOD},
     "step-stalled": {"task": "fleet.step_stalled", "schedule": DISPATCH_STALL_CHECK_SECONDS},
     "trim-changes": {"task": "fleet.trim_changes", "schedule": CHANGE_TRIM_SECONDS},
+    "assign-waiting": {"task": "fleet.assign_waiting", "schedule": ASSIGNMENT_CHECK_SECONDS},
 }

@@ -1,8 +1,10 @@
-"""The one port through which domain services ask the dispatch engine to step robots.
+"""The one port through which domain services ask the dispatch engine to step robots or to assign
+missions.
 
-Services record a change and say which robots it concerns (`request_steps`); how their steps get queued
-(Celery, `workers.step_requests.queue_steps_soon`) is installed here by the workers app, so the services
-never import the workers.
+Services record a change and say which robots it concerns (`request_steps`), or that unbound missions may
+now find a robot (`request_assignment`); how those get queued (Celery,
+`workers.step_requests.queue_steps_soon` and `queue_assignment_soon`) is installed here by the workers app,
+so the services never import the workers.
 """
 
 from collections.abc import Callable, Iterable
@@ -10,14 +12,17 @@ from collections.abc import Callable, Iterable
 from django.db import transaction
 
 StepRequester = Callable[[list[str]], None]
+AssignmentRequester = Callable[[], None]
 
 _requester: StepRequester | None = None
+_assignment_requester: AssignmentRequester | None = None
 
 
-def install(requester: StepRequester) -> None:
-    """Set how steps are queued (`workers.apps.WorkersConfig.ready`)."""
-    global _requester
+def install(requester: StepRequester, assignment_requester: AssignmentRequester) -> None:
+    """Set how steps and assignment runs are queued (`workers.apps.WorkersConfig.ready`)."""
+    global _requester, _assignment_requester
     _requester = requester
+    _assignment_requester = assignment_requester
 
 
 def request_steps(names: Iterable[str]) -> None:
@@ -29,3 +34,12 @@ def request_steps(names: Iterable[str]) -> None:
         raise RuntimeError("no step requester installed: is the workers app in INSTALLED_APPS?")
     names = list(names)
     transaction.on_commit(lambda: requester(names))
+
+
+def request_assignment() -> None:
+    """Run assignment (bind unbound missions to free capable robots) once the current transaction commits;
+    requests made while one is queued are one run. Beat's periodic check makes up for a request lost."""
+    requester = _assignment_requester
+    if requester is None:
+        raise RuntimeError("no assignment requester installed: is the workers app in INSTALLED_APPS?")
+    transaction.on_commit(requester)

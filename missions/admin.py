@@ -19,10 +19,12 @@ from dispatch.engine import Node, TreeError, apply_route_updates, parse_tree
 from dispatch.vocabulary import MissionState, NodeKind
 from kit.admin import call_service_for_each, delete_through_service
 from missions.models import Mission
-from missions.services import mission_cancel, mission_delete
+from missions.services import mission_cancel, mission_delete, mission_prioritize
 from robots.models import Robot
 
 TREE_INDENT_PX = 20
+UNBOUND = "(unbound)"
+PRIORITY_STEP = 10  # what the admin's raise and lower actions add or take
 # Longest rendering of an action's parameters in the tree view before it is cut.
 ACTION_PARAMETERS_MAX_CHARS = 80
 STATE_COLOURS = {
@@ -114,8 +116,10 @@ def mission_tree_rows(mission: Mission) -> list[TreeRow]:
 class MissionAdmin(admin.ModelAdmin):
     list_display = (
         "name",
-        "robot",
+        "robot_or_unbound",
+        "priority",
         "state_label",
+        "waiting_reason",
         "current_node_name",
         "start_timestamp",
         "end_timestamp",
@@ -123,14 +127,15 @@ class MissionAdmin(admin.ModelAdmin):
         "failure_category",
         "lifecycle",
     )
-    list_filter = ("state", "failure_category", "lifecycle")
+    list_filter = ("state", ("robot", admin.EmptyFieldListFilter), "failure_category", "lifecycle")
     search_fields = ("name", "robot")
     date_hierarchy = "start_timestamp"
     ordering = ("-queue_position",)
     list_per_page = 50
-    actions = ("cancel_missions",)
+    actions = ("cancel_missions", "raise_priority", "lower_priority")
     fieldsets = (
         (None, {"fields": ("name", "robot_link", "state_label", "lifecycle", "needs_canceled")}),
+        ("Assignment", {"fields": ("priority", "robot_selector", "assignment")}),
         (
             "Progress",
             {
@@ -188,8 +193,14 @@ class MissionAdmin(admin.ModelAdmin):
             return mission.mission_tree[mission.current_node].get("name", str(mission.current_node))
         return "-"
 
+    @admin.display(description="robot", ordering="robot")
+    def robot_or_unbound(self, mission: Mission) -> str:
+        return UNBOUND if mission.robot is None else mission.robot
+
     @admin.display(description="robot")
     def robot_link(self, mission: Mission) -> str:
+        if mission.robot is None:
+            return UNBOUND
         if not Robot.objects.filter(name=mission.robot).exists():
             return mission.robot
         return format_html(
@@ -213,6 +224,24 @@ class MissionAdmin(admin.ModelAdmin):
             queryset,
             lambda mission: mission_cancel(actor=actor, mission=mission),
             "Cancel requested",
+        )
+
+    @admin.action(description=f"Raise priority by {PRIORITY_STEP}", permissions=["cancel"])
+    def raise_priority(self, request: HttpRequest, queryset: QuerySet[Mission]) -> None:
+        self._shift_priority(request, queryset, PRIORITY_STEP)
+
+    @admin.action(description=f"Lower priority by {PRIORITY_STEP}", permissions=["cancel"])
+    def lower_priority(self, request: HttpRequest, queryset: QuerySet[Mission]) -> None:
+        self._shift_priority(request, queryset, -PRIORITY_STEP)
+
+    def _shift_priority(self, request: HttpRequest, queryset: QuerySet[Mission], by: int) -> None:
+        actor = request_actor(request)
+        call_service_for_each(
+            self,
+            request,
+            queryset,
+            lambda mission: mission_prioritize(actor=actor, mission=mission, priority=mission.priority + by),
+            "Priority changed",
         )
 
     def delete_model(self, request: HttpRequest, obj: Mission) -> None:

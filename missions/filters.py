@@ -8,6 +8,7 @@ from kit.api.fields import INT64_MAX
 from kit.api.filters import StrictFilterSet
 from missions.choices import MissionState
 from missions.models import Mission
+from robots.filters import StrictBooleanFilter
 
 # most_recent is an SQL LIMIT, a PostgreSQL bigint.
 MOST_RECENT_MAX = INT64_MAX
@@ -29,7 +30,14 @@ class MissionFilter(StrictFilterSet):
         lookup_expr="lte",
         help_text="Missions whose start_timestamp is <= this ISO 8601 time (UTC unless an offset is given).",
     )
-    robot = filters.CharFilter(help_text="Missions of the robot with this name.")
+    robot = filters.CharFilter(
+        help_text="Missions of the robot with this name (those posted without a robot once bound to it)."
+    )
+    unbound = StrictBooleanFilter(
+        field_name="robot",
+        lookup_expr="isnull",
+        help_text="true: only missions without a robot (waiting for assignment); false: only those with one.",
+    )
     # Declared last on purpose: filters apply in declaration order, and the limit must cut the filtered list.
     most_recent = IntegerFilter(
         method="filter_most_recent",

@@ -17,13 +17,23 @@ class NextQueuePosition(models.Func):
 
 
 class Mission(models.Model):
-    """A behaviour-tree mission for one robot: its spec (from the API) and its status (from the engine)."""
+    """A behaviour-tree mission for one robot (or none yet: unbound, until assignment binds it): its spec
+    (from the API) and its status (from the engine)."""
 
     name = models.CharField(max_length=100, primary_key=True)
     lifecycle = models.CharField(max_length=20, choices=Lifecycle.choices, default=Lifecycle.ALIVE)
 
     # --- spec ---
-    robot = models.CharField(max_length=100, help_text="Name of the robot; it need not exist yet.")
+    robot = models.CharField(
+        max_length=100,
+        null=True,
+        blank=True,
+        help_text="Name of the robot; it need not exist yet. Null: unbound, assignment picks a robot.",
+    )
+    priority = models.IntegerField(default=0, help_text="Higher first in a robot's queue.")
+    robot_selector = models.JSONField(
+        null=True, blank=True, help_text="Who can run an unbound mission: labels, robot_types, action_types."
+    )
     mission_tree = models.JSONField(help_text="Nodes in the API's shape, each with its name and parent.")
     timeout = models.FloatField(default=300.0, help_text="Seconds from start before the mission fails.")
     deadline = models.DateTimeField(null=True, blank=True)
@@ -42,6 +52,11 @@ class Mission(models.Model):
 
     waiting_reason = models.TextField(
         null=True, blank=True, help_text="Why a queued mission has not started yet (e.g. low battery)."
+    )
+    assignment = models.JSONField(
+        default=list,
+        blank=True,
+        help_text="The bindings assignment made of the mission: robot, bound_at, released_at, reason.",
     )
 
     # --- dispatch engine's record of the current leaf's VDA 5050 order ---
@@ -83,6 +98,12 @@ class Mission(models.Model):
                 name="mission_unnoticed_idx",
             ),
             models.Index(fields=["robot"], condition=models.Q(state="RUNNING"), name="mission_running_idx"),
+            # Assignment reads the unbound queue on every run; few rows, however many missions there are.
+            models.Index(
+                fields=["queue_position"],
+                condition=models.Q(state="PENDING", robot__isnull=True),
+                name="mission_unbound_idx",
+            ),
         ]
 
     def __str__(self) -> str:

@@ -23,11 +23,14 @@ from dispatch.held import FINAL
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.step import step
 from kit.db import jsonb, pipelined_transaction
+from kit.wake import request_assignment
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.rows import (
     MISSION_FIELDS,
+    RELEASE_SQL,
     ROBOT_QUEUE_LOCK_SQL,
+    binding_time,
     mission_columns,
     mission_db_values,
     mission_row_delete,
@@ -49,7 +52,8 @@ logger = logging.getLogger(__name__)
 # The step's reads are the hot path of the whole system. As plain SQL with only the columns the step needs,
 # read straight into the engine's records, they skip the ORM's compiler and model instances (which cost
 # more than the queries) and never read what the step does not use, such as a robot's factsheet. Both
-# lock what they read until the step commits.
+# lock what they read until the step commits. A robot's next mission is its queue's highest-priority one,
+# the first queued among equals (a running one is never preempted: it comes first whatever its priority).
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(FINAL))
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
@@ -70,7 +74,7 @@ MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name
 CURRENT_MISSIONS_SQL = f"""
     SELECT {", ".join(mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
     WHERE robot = %s AND state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
-    ORDER BY state <> '{MissionState.RUNNING}', queue_position LIMIT %s FOR UPDATE
+    ORDER BY state <> '{MissionState.RUNNING}', priority DESC, queue_position LIMIT %s FOR UPDATE
 """
 # The fields a step writes; the record's others are the mission's spec.
 STEP_STATUS_FIELDS = (
@@ -110,6 +114,7 @@ class StepOutcome:
     notifies: list[tuple[str, str]] = field(default_factory=list)
     finished: list[MissionRecord] = field(default_factory=list)
     rejections: int = 0
+    released: list[str] = field(default_factory=list)  # missions given back to assignment
     header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
     # What to publish, in this order: `messages` encoded, after those of an earlier step that may not
     # have gone out (`_wire_messages`).
@@ -134,7 +139,7 @@ def robot_step(*, name: str, now: datetime | None = None) -> StepOutcome:
 
 def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> bool:
     """One transaction of a step, adding to `outcome`; True if the robot needs another one."""
-    first = len(outcome.messages)
+    first, released = len(outcome.messages), len(outcome.released)
     # Open across the transaction: the look at the queue is read once it has committed, from the reply
     # that also brings the COMMIT's (reading it inside would cost a round trip of its own).
     with (
@@ -151,12 +156,19 @@ def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> b
             if end is StepEnd.QUEUE_RAN_DRY:
                 lock_cursor.execute(ROBOT_QUEUE_LOCK_SQL, [name])
                 queue_cursor.execute(QUEUE_GREW_SQL, [name])
+        if len(outcome.released) > released:
+            request_assignment()  # committed: another robot may take them
         if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
             outcome.header_ids.clear()
             outcome.wire.clear()
             transaction.on_commit(lambda: livestate.forget(name))
             return False
-        return end is StepEnd.QUEUE_RAN_DRY and queue_cursor.fetchone()[0]
+        if end is not StepEnd.QUEUE_RAN_DRY:
+            return False
+        queue_grew, unbound_wait = queue_cursor.fetchone()
+        if not queue_grew and unbound_wait:
+            request_assignment()  # the robot is free: an unbound mission may be its
+        return queue_grew
 
 
 @dataclass
@@ -234,10 +246,12 @@ class StepEnd(Enum):
 
 
 # Whether the robot has a queued mission, read under the robot's queue lock (ROBOT_QUEUE_LOCK_SQL) by a step
-# that ended the robot's last mission.
+# that ended the robot's last mission; and whether unbound missions wait (the robot, free, may take one).
 QUEUE_GREW_SQL = f"""
     SELECT EXISTS (
         SELECT 1 FROM {Mission._meta.db_table} WHERE robot = %s AND state = '{MissionState.PENDING}'
+    ), EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} WHERE robot IS NULL AND state = '{MissionState.PENDING}'
     )
 """
 
@@ -321,6 +335,9 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
                 outcome.finished.append(result.mission)
             if result.delete_mission:
                 mission_row_delete(mission.name)
+            if result.release is not None:
+                _release(name, mission.name, result.release)
+                outcome.released.append(mission.name)
         if result.delete_robot:
             robot_rows_delete(name)
             return StepEnd.ROBOT_DELETED, wire
@@ -333,8 +350,15 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
 
 
+def _release(robot: str, mission: str, reason: str) -> None:
+    """Unbind the mission assignment bound to the robot (`StepResult.release`)."""
+    now = timezone.now()
+    with connection.cursor() as cursor:
+        cursor.execute(RELEASE_SQL, [now, binding_time(now), reason, mission, robot])
+
+
 def _current_missions(robot: str, *, count: int) -> list[MissionRecord]:
-    """The robot's RUNNING mission, then its queue in FIFO order, locked."""
+    """The robot's RUNNING mission, then its queue by priority (highest first), FIFO among equals, locked."""
     with connection.cursor() as cursor:
         cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
         return _mission_records(cursor.fetchall())

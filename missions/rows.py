@@ -4,13 +4,16 @@ As plain SQL they skip the ORM's query compiler, which costs more than the queri
 """
 
 from collections.abc import Mapping
+from datetime import UTC, datetime
 from typing import Any
 
 from django.db import connection
 from django.db.models import JSONField
 
+from dispatch.vocabulary import MissionState
 from kit.db import jsonb
 from missions.models import Mission
+from robots.models import Robot
 
 MISSION_FIELDS = {field.name: field for field in Mission._meta.concrete_fields}
 MISSION_JSON_FIELDS = frozenset(name for name, f in MISSION_FIELDS.items() if isinstance(f, JSONField))
@@ -49,3 +52,34 @@ MISSION_DELETE_SQL = f"DELETE FROM {Mission._meta.db_table} WHERE name = %s"
 def mission_row_delete(name: str) -> None:
     with connection.cursor() as cursor:
         cursor.execute(MISSION_DELETE_SQL, [name])
+
+
+def binding_time(at: datetime) -> str:
+    """A time in a mission's assignment record, as the API writes times."""
+    return at.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def _release_sql(condition: str) -> str:
+    """Unbind the queued missions assignment bound that meet `condition`: robot null again, the latest
+    binding released (when, why). Parameters: updated_at, released_at (`binding_time`), reason, then
+    the condition's."""
+    return f"""
+        UPDATE {Mission._meta.db_table} AS m
+        SET robot = NULL, updated_at = %s, assignment = jsonb_set(
+            m.assignment,
+            ARRAY[(jsonb_array_length(m.assignment) - 1)::text],
+            (m.assignment -> -1) || jsonb_build_object('released_at', %s::text, 'reason', %s::text)
+        )
+        WHERE m.robot IS NOT NULL AND m.state = '{MissionState.PENDING}' AND m.assignment <> '[]'
+          AND {condition}
+        RETURNING m.name
+    """
+
+
+# The step's: the robot it could not start the mission on gives it back. Parameters: ..., mission, robot.
+RELEASE_SQL = _release_sql("m.name = %s AND m.robot = %s")
+# Assignment's: the robot was deleted (its step, finding no robot, sees none of its missions).
+RELEASE_ORPHANS_SQL = _release_sql(
+    f"NOT EXISTS (SELECT 1 FROM {Robot._meta.db_table} r WHERE r.name = m.robot)"
+)
+ROBOT_DELETED = "Robot was deleted"

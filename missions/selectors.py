@@ -1,16 +1,21 @@
 """Reads of missions."""
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
+import orjson
 from django.conf import settings
+from django.db import connection
 from django.db.models import DateTimeField, ExpressionWrapper, F, Q, QuerySet, Value
 from django.db.models.fields.json import KT
 from django.utils import timezone
 
+from dispatch import engine
+from dispatch.assignment import CandidateRobot, Pose, QueueHead, RobotSelector, UnboundMission
 from dispatch.held import order_finished, order_lacked
-from dispatch.vocabulary import DEFAULT_NOTIFY_TIMEOUT, MissionState
+from dispatch.vocabulary import DEFAULT_NOTIFY_TIMEOUT, Lifecycle, MissionState, NodeKind, RobotState
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from missions.filters import MissionFilter
@@ -18,6 +23,8 @@ from missions.models import Mission
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
+from vda5050 import maps
+from vda5050.models import MapStatus
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -61,7 +68,7 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
         Q(timeout_at__lte=now) | Q(deadline__lte=now) | Q(needs_canceled=True)
     )
     unaccepted = running.filter(order_accepted=False, order_sent_at__lte=order_resend)
-    pending = Mission.objects.filter(state=MissionState.PENDING, deadline__lte=now)
+    pending = Mission.objects.filter(state=MissionState.PENDING, deadline__lte=now, robot__isnull=False)
     # Queued missions no step has looked at, on robots that run nothing: a creation whose wake-up was lost
     # (Redis away, or the API killed between its commit and the wake-up).
     unnoticed = Mission.objects.filter(
@@ -148,7 +155,151 @@ def _orders_not_taken(missions: QuerySet[Mission]) -> list[str]:
 def robots_with_missions() -> list[str]:
     """Robots with a running or queued mission."""
     return list(
-        Mission.objects.filter(state__in=[MissionState.RUNNING, MissionState.PENDING])
+        Mission.objects.filter(state__in=[MissionState.RUNNING, MissionState.PENDING], robot__isnull=False)
         .values_list("robot", flat=True)
         .distinct()
+    )
+
+
+# --- assignment's reads (`missions.services.missions_assign`) ------------------------------------------
+
+UNBOUND_MISSIONS_SQL = f"""
+    SELECT name, priority, created_at, robot_selector, mission_tree, update_nodes, waiting_reason
+    FROM {Mission._meta.db_table}
+    WHERE robot IS NULL AND state = '{MissionState.PENDING}' AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY queue_position
+"""
+# Every robot, with what makes it free or not: its running mission or a mission assignment bound to it
+# that has not started yet (either: not free), and its own queue's head (`QueueHead`). A robot's rows are
+# found by mission_queue_idx.
+CANDIDATE_ROBOTS_SQL = f"""
+    SELECT r.name, r.labels, r.agv_class,
+        COALESCE(
+            r.factsheet #> '{{protocolFeatures,agvActions}}',
+            r.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
+        ),
+        r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
+        r.online AND r.lifecycle = '{Lifecycle.ALIVE}',
+        r.state <> '{RobotState.TELEOP}' AND NOT r.switch_teleop AND NOT EXISTS (
+            SELECT 1 FROM jsonb_each(r.errors) AS e(kind, error)
+            WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
+        ),
+        r.battery_level >= r.battery_critical_level, r.maps,
+        EXISTS (
+            SELECT 1 FROM {Mission._meta.db_table} m
+            WHERE m.robot = r.name AND (
+                m.state = '{MissionState.RUNNING}'
+                OR m.state = '{MissionState.PENDING}' AND m.assignment <> '[]'
+            )
+        ),
+        head.priority, head.created_at
+    FROM {Robot._meta.db_table} r
+    LEFT JOIN LATERAL (
+        SELECT priority, created_at FROM {Mission._meta.db_table} m
+        WHERE m.robot = r.name AND m.state = '{MissionState.PENDING}'
+        ORDER BY m.priority DESC, m.queue_position LIMIT 1
+    ) AS head ON true
+"""
+
+
+def unbound_missions_wait() -> bool:
+    return Mission.objects.filter(robot__isnull=True, state=MissionState.PENDING).exists()
+
+
+@dataclass(frozen=True)
+class AssignmentInputs:
+    missions: list[UnboundMission]
+    robots: list[CandidateRobot]
+    waiting_reasons: dict[str, str | None]  # each unbound mission's, as stored
+
+
+def assignment_inputs() -> AssignmentInputs:
+    """The unbound queued missions and every robot, as assignment's records: two queries."""
+    with connection.cursor() as cursor:
+        cursor.execute(UNBOUND_MISSIONS_SQL)
+        mission_rows = cursor.fetchall()
+        if not mission_rows:
+            return AssignmentInputs([], [], {})
+        cursor.execute(CANDIDATE_ROBOTS_SQL)
+        robot_rows = cursor.fetchall()
+    return AssignmentInputs(
+        missions=[_unbound_mission(*row[:6]) for row in mission_rows],
+        robots=[_candidate_robot(*row) for row in robot_rows],
+        waiting_reasons={row[0]: row[6] for row in mission_rows},
+    )
+
+
+def _json(value: Any) -> Any:
+    """A JSON column read by plain SQL: Django leaves it undecoded."""
+    return orjson.loads(value) if isinstance(value, str | bytes) else value
+
+
+def _unbound_mission(
+    name: str,
+    priority: int,
+    created: datetime,
+    selector: Any,
+    mission_tree: Any,
+    update_nodes: Any,
+) -> UnboundMission:
+    selector = _json(selector) or {}
+    try:
+        tree = engine.apply_route_updates(engine.parse_tree(_json(mission_tree)), _json(update_nodes))
+    except engine.TreeError:
+        tree = None  # its step fails it once bound
+    waypoints = [
+        waypoint
+        for node in (tree.nodes if tree else ())
+        if node.kind == NodeKind.ROUTE
+        for waypoint in node.params["waypoints"]
+    ]
+    start = waypoints[0] if waypoints else None
+    return UnboundMission(
+        name=name,
+        priority=priority,
+        created=created,
+        selector=RobotSelector(
+            labels=frozenset(selector.get("labels", ())),
+            robot_types=frozenset(selector.get("robot_types", ())),
+            action_types=frozenset(selector.get("action_types", ())),
+        ),
+        start=None if start is None else Pose(start["x"], start["y"], str(start.get("map_id", ""))),
+        maps=frozenset(map_id for map_id in maps.waypoint_map_ids(waypoints) if map_id),
+    )
+
+
+def _candidate_robot(
+    name: str,
+    labels: Any,
+    robot_type: str,
+    actions: Any,
+    has_pose: bool,
+    x: float,
+    y: float,
+    map_id: str,
+    online: bool,
+    may_work: bool,
+    battery_ok: bool,
+    robot_maps: Any,
+    busy: bool,
+    head_priority: int | None,
+    head_created: datetime | None,
+) -> CandidateRobot:
+    actions, robot_maps = _json(actions), _json(robot_maps)
+    return CandidateRobot(
+        name=name,
+        labels=frozenset(_json(labels) or ()),
+        robot_type=robot_type,
+        action_types=None if actions is None else frozenset(a.get("actionType") for a in actions),
+        pose=Pose(x, y, map_id) if has_pose else None,
+        online=online,
+        idle=may_work and not busy,
+        battery_ok=battery_ok,
+        enabled_maps=(
+            frozenset(m["map_id"] for m in robot_maps if m.get("map_status") == MapStatus.ENABLED)
+            if robot_maps
+            else None
+        ),
+        idle_since=None,
+        queue_head=None if head_created is None else QueueHead(head_priority, head_created),
     )

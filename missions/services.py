@@ -16,17 +16,31 @@ from django.utils import timezone
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
+from dispatch.assignment import assign
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
+from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
 from kit.api.rows import lock_row
-from kit.wake import request_steps
+from kit.wake import request_assignment, request_steps
 from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind
 from missions.models import Mission
-from missions.rows import MISSION_FIELDS, mission_columns, mission_db_values, mission_row_delete
+from missions.rows import (
+    MISSION_FIELDS,
+    RELEASE_ORPHANS_SQL,
+    ROBOT_DELETED,
+    binding_time,
+    mission_columns,
+    mission_db_values,
+    mission_row_delete,
+)
+from missions.selectors import assignment_inputs
+from robots.models import Robot
 
 logger = logging.getLogger(__name__)
 
+# A mission's priority: higher first in a robot's queue and in assignment.
+PRIORITY_MIN, PRIORITY_MAX = -1000, 1000
 # Mission states in which routes may still be updated.
 UPDATABLE_STATES = frozenset({MissionState.PENDING, MissionState.RUNNING})
 # Fields a cancel writes.
@@ -34,20 +48,28 @@ CANCEL_FIELDS = ("state", "end_timestamp", "failure_category", "needs_canceled",
 
 
 def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> Mission:
-    """A new PENDING mission, queued behind the robot's other missions (the robot need not exist yet).
+    """A new PENDING mission, queued behind the robot's other missions (the robot need not exist yet), or,
+    without a robot, unbound: assignment (`missions_assign`) binds it to a free capable robot.
 
-    `spec` is in the API's shape (robot, mission_tree, timeout, deadline, needs_canceled, update_nodes).
+    `spec` is in the API's shape (robot, mission_tree, timeout, deadline, needs_canceled, update_nodes,
+    priority, robot_selector).
     The tree is stored normalized: every node named (unnamed ones by their index) with its parent and its
     one kind. A mission created with needs_canceled is created CANCELED. `actor` (who asks, as in every
     service here) is recorded with the write.
     """
     mission_name = object_name_for_create(name=name, prefix=prefix, what="Mission name")
-    robot = spec["robot"]
-    object_name_check(robot, what="Robot name")
+    robot = spec.get("robot")
+    selector = spec.get("robot_selector")
+    if robot is not None:
+        object_name_check(robot, what="Robot name")
+        if selector is not None:
+            raise UsageError("Only a mission without robot has a robot_selector.")
     tree = _tree_parse(spec["mission_tree"])
     mission = Mission(
         name=mission_name,
         robot=robot,
+        priority=spec.get("priority", 0),
+        robot_selector=None if selector is None else _plain(selector),
         mission_tree=[
             {"name": node.name, "parent": node.parent, node.kind: node.params} for node in tree.nodes
         ],
@@ -65,7 +87,10 @@ def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Ma
         queued_behind_others = _mission_insert(mission, actor=actor)
     except IntegrityError as error:
         raise ObjectError.exists("mission", mission_name) from error
-    if not queued_behind_others:
+    if mission.robot is None:
+        if mission.state == MissionState.PENDING:
+            request_assignment()
+    elif not queued_behind_others:
         request_steps([mission.robot])
     return mission
 
@@ -111,7 +136,7 @@ def mission_cancel(*, actor: str, mission: Mission) -> Mission:
             locked.needs_canceled = True
         locked.save(update_fields=[*CANCEL_FIELDS, "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_CANCEL, object_name=locked.name)
-        request_steps([locked.robot])
+        _wake(locked)
     return locked
 
 
@@ -122,7 +147,7 @@ def mission_delete(*, actor: str, mission: Mission) -> Mission | None:
     with transaction.atomic():
         locked = lock_row(mission)
         write_record(actor=actor, action=WriteAction.MISSION_DELETE, object_name=locked.name)
-        request_steps([locked.robot])
+        _wake(locked)
         if locked.state == MissionState.RUNNING:
             locked.lifecycle = Lifecycle.PENDING_DELETE
             locked.needs_canceled = True
@@ -147,8 +172,33 @@ def mission_update_routes(
         locked.update_nodes = {**(locked.update_nodes or {}), **_plain(update_nodes)}
         locked.save(update_fields=["update_nodes", "updated_at"])
         write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
-        request_steps([locked.robot])
+        _wake(locked)
     return locked
+
+
+def mission_prioritize(*, actor: str, mission: Mission, priority: int) -> Mission:
+    """Give a queued mission a new priority (within PRIORITY_MIN..PRIORITY_MAX): its place in its robot's
+    queue, or in assignment's, follows. A running or finished mission keeps its own (a UsageError)."""
+    if not PRIORITY_MIN <= priority <= PRIORITY_MAX:
+        raise UsageError(f"Priority must be within {PRIORITY_MIN}..{PRIORITY_MAX}, not {priority}.")
+    with transaction.atomic():
+        locked = lock_row(mission)
+        if locked.state != MissionState.PENDING:
+            raise UsageError(f"Mission {locked.name} is {locked.state}: only a queued one changes priority.")
+        locked.priority = priority
+        locked.save(update_fields=["priority", "updated_at"])
+        write_record(actor=actor, action=WriteAction.MISSION_UPDATE, object_name=locked.name)
+        if locked.robot is None:
+            request_assignment()
+        else:
+            _wake(locked)
+    return locked
+
+
+def _wake(mission: Mission) -> None:
+    """Step the mission's robot; an unbound mission has none to step (assignment reads it afresh)."""
+    if mission.robot is not None:
+        request_steps([mission.robot])
 
 
 def _tree_parse(mission_tree: list[Mapping[str, Any]]) -> Tree:
@@ -211,7 +261,7 @@ def mission_notify_finished(*, mission: str, node: str, success: bool, error_msg
         if not success:
             locked.failure_reason = error_msg
         locked.save(update_fields=["node_status", "failure_reason", "updated_at"])
-        request_steps([locked.robot])
+        _wake(locked)
 
 
 # queue_position is left to its database default: the next value of the queue sequence (NextQueuePosition).
@@ -270,3 +320,97 @@ def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
                 timezone.now(),
             ],
         )
+
+
+# --- assignment: binding unbound missions to free capable robots (issue 41) -----------------------------
+
+# Both lock only rows no one else holds, so that runs never wait for each other (nor deadlock) nor for a
+# step: what they skip waits for the next run, which the run asks for.
+LOCK_FREE_ROBOTS_SQL = f"""
+    SELECT name FROM {Robot._meta.db_table}
+    WHERE name = ANY(%s) AND online AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY name FOR UPDATE SKIP LOCKED
+"""
+LOCK_UNBOUND_SQL = f"""
+    SELECT name FROM {Mission._meta.db_table}
+    WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
+      AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY name FOR UPDATE SKIP LOCKED
+"""
+# Its snapshot is taken after the locks: a binding another run committed before this one locked the robot
+# is seen, and the robot is not bound twice. `robot IS NULL` again: a mission is never bound twice.
+BIND_SQL = f"""
+    UPDATE {Mission._meta.db_table} AS m
+    SET robot = b.robot, waiting_reason = NULL, updated_at = %s,
+        assignment = m.assignment || jsonb_build_array(
+            jsonb_build_object('robot', b.robot, 'bound_at', %s::text, 'released_at', NULL, 'reason', NULL)
+        )
+    FROM unnest(%s::varchar[], %s::varchar[]) AS b(name, robot)
+    WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
+      AND NOT EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} o
+        WHERE o.robot = b.robot AND (
+            o.state = '{MissionState.RUNNING}' OR o.state = '{MissionState.PENDING}' AND o.assignment <> '[]'
+        )
+      )
+    RETURNING m.name, m.robot
+"""
+# An unbound mission still queued at its deadline never starts, as one of a robot's queue (the step's
+# rule, `dispatch.step`): no robot's step sees it, so assignment's run ends it.
+DEADLINE_UNBOUND_SQL = f"""
+    UPDATE {Mission._meta.db_table}
+    SET state = '{MissionState.FAILED}', end_timestamp = %s, updated_at = %s, waiting_reason = NULL,
+        failure_reason = %s, failure_category = '{FailureCategory.DEADLINE}',
+        node_status = node_status || jsonb_build_object(
+            '{ROOT}', jsonb_build_object('state', '{MissionState.FAILED}', 'error_msg', NULL)
+        )
+    WHERE robot IS NULL AND state = '{MissionState.PENDING}' AND deadline <= %s
+"""
+WAITING_REASONS_SQL = f"""
+    UPDATE {Mission._meta.db_table} AS m SET waiting_reason = w.reason, updated_at = %s
+    FROM unnest(%s::varchar[], %s::text[]) AS w(name, reason)
+    WHERE m.name = w.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
+      AND m.waiting_reason IS DISTINCT FROM w.reason
+"""
+
+
+def missions_assign() -> dict[str, str]:
+    """Bind the unbound queued missions to free capable robots (`dispatch.assignment.assign`), record why
+    the others wait, and step the robots bound; returns the bindings made (mission -> robot).
+
+    The read takes no locks; the binding, in one transaction, locks the robots and missions it binds
+    (SKIP LOCKED) and binds only a mission still unbound to a robot still free, so that whatever number of
+    runs go at once, a mission is bound once and a robot gets one mission. A binding skipped for a lock
+    or a race is tried again by the next run, asked for at once.
+    """
+    now = timezone.now()
+    with connection.cursor() as cursor:
+        cursor.execute(RELEASE_ORPHANS_SQL, [now, binding_time(now), ROBOT_DELETED])
+        cursor.execute(DEADLINE_UNBOUND_SQL, [now, now, DEADLINE_PASSED, now])
+    inputs = assignment_inputs()
+    if not inputs.missions:
+        return {}
+    result = assign(inputs.missions, inputs.robots)
+    with transaction.atomic(), connection.cursor() as cursor:
+        bound: dict[str, str] = {}
+        if result.bindings:
+            cursor.execute(LOCK_FREE_ROBOTS_SQL, [sorted(set(result.bindings.values()))])
+            robots = {name for (name,) in cursor.fetchall()}
+            cursor.execute(LOCK_UNBOUND_SQL, [sorted(result.bindings)])
+            missions = [name for (name,) in cursor.fetchall() if result.bindings[name] in robots]
+            if missions:
+                cursor.execute(
+                    BIND_SQL,
+                    [now, binding_time(now), missions, [result.bindings[name] for name in missions]],
+                )
+                bound = dict(cursor.fetchall())
+        changed = {
+            name: reason for name, reason in result.waiting.items() if inputs.waiting_reasons[name] != reason
+        }
+        if changed:
+            cursor.execute(WAITING_REASONS_SQL, [now, list(changed), list(changed.values())])
+        if bound:
+            request_steps(sorted(set(bound.values())))
+        if len(bound) < len(result.bindings):
+            request_assignment()
+    return bound

@@ -14,7 +14,7 @@ from dispatch.vocabulary import MissionState
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_for_create
 from kit.api.rows import lock_row
-from kit.wake import request_steps
+from kit.wake import request_assignment, request_steps
 from missions.models import Mission
 from robots import livestate
 from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, MapAction, SettingSource, TeleopAction
@@ -48,6 +48,7 @@ def robot_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapp
             if settings.DISPATCH_REQUEST_FACTSHEET:
                 _queue_instant_action(robot, FACTSHEET_REQUEST)
             request_steps([robot.name])
+            request_assignment()
     except IntegrityError as error:
         if Robot.objects.filter(name=robot_name).exists():
             raise ObjectError.exists("robot", robot_name) from error
@@ -66,6 +67,7 @@ def robot_update_spec(*, actor: str, robot: Robot, spec: Mapping[str, Any]) -> R
             locked.save(update_fields=[*fields, "updated_at"])
             write_record(actor=actor, action=WriteAction.ROBOT_UPDATE, object_name=locked.name)
             request_steps([locked.name])
+            request_assignment()  # its new labels may be what an unbound mission waits for
     except IntegrityError as error:
         raise _identity_taken(fields) from error
     return locked
@@ -81,6 +83,7 @@ def robot_delete(*, actor: str, robot: Robot) -> Robot | None:
         locked = lock_row(robot)
         write_record(actor=actor, action=WriteAction.ROBOT_DELETE, object_name=locked.name)
         request_steps([locked.name])
+        request_assignment()  # the missions assignment bound to it go back to the pool
         if Mission.objects.filter(robot=locked.name, state=MissionState.RUNNING).exists():
             locked.lifecycle = Lifecycle.PENDING_DELETE
             locked.save(update_fields=["lifecycle", "updated_at"])

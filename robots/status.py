@@ -10,7 +10,7 @@ from typing import Any
 from django.conf import settings
 from django.db import connection, transaction
 
-from kit.wake import request_steps
+from kit.wake import request_assignment, request_steps
 from robots import livestate
 from robots.choices import SettingSource
 from robots.models import InstantAction, Robot
@@ -18,8 +18,8 @@ from robots.services import FACTSHEET_REQUEST, instant_action
 
 
 def robots_came_online(*, names: Sequence[str]) -> None:
-    """Mark robots online and ask each for its factsheet (sent by its next step, which the caller requests),
-    unless a request is already waiting.
+    """Mark robots online, ask each for its factsheet (sent by its next step, which the caller requests)
+    unless a request is already waiting, and ask for an assignment run.
 
     One transaction for them all: robots come online in bursts (a fleet starting, a broker restart), and
     the bridge does this between two batches of messages. The rows are locked first, in name order, so two
@@ -33,6 +33,7 @@ def robots_came_online(*, names: Sequence[str]) -> None:
             .values_list("name", flat=True)
         )
         Robot.objects.filter(name__in=locked).update(online=True)
+        request_assignment()  # robots back online may take unbound missions
         if not settings.DISPATCH_REQUEST_FACTSHEET:
             return
         waiting = set(

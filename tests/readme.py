@@ -211,6 +211,23 @@ MISSION_WITH_TELEOP = json.loads(
 """
 )
 
+# "Missions for any capable robot": a mission posted without a robot.
+UNBOUND_MISSION_EXAMPLE = json.loads(
+    """
+{
+"robot_selector": {"labels": ["forklift"], "robot_types": [], "action_types": ["dummy_action"]},
+"priority": 10,
+"mission_tree": [
+{"name": "goto_pickup", "parent": "root",
+ "route": {"waypoints": [{"x": 1.5, "y": 0.8, "theta": 0, "map_id": "map"}]}},
+{"name": "pickup_pallet", "parent": "root",
+ "action": {"action_type": "dummy_action", "action_parameters": {"should_fail": 0, "time": 1}}}
+],
+"name": "unbound_mission_example"
+}
+"""
+)
+
 README_ROBOT = {"labels": [], "battery": {"critical_level": 0.1}, "heartbeat_timeout": 30, "name": "carter01"}
 
 README_MISSIONS = {

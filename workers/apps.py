@@ -5,8 +5,9 @@ class WorkersConfig(AppConfig):
     name = "workers"
 
     def ready(self) -> None:
-        """Domain services ask for steps through `kit.wake`; here they become Celery step tasks."""
+        """Domain services ask for steps and assignment runs through `kit.wake`; here they become Celery
+        tasks."""
         from kit import wake
-        from workers.step_requests import queue_steps_soon
+        from workers.step_requests import queue_assignment_soon, queue_steps_soon
 
-        wake.install(queue_steps_soon)
+        wake.install(queue_steps_soon, queue_assignment_soon)

@@ -29,6 +29,10 @@ from workers import tuning
 logger = logging.getLogger(__name__)
 
 STEP_TASK = "fleet.step_robots"  # workers.tasks.step_robots, sent by name: the tasks import this module
+ASSIGN_TASK = "fleet.assign_missions"  # workers.tasks.assign_missions
+# Exists while an assignment run is queued and has not started: at most one queued at a time. It expires,
+# so that a run lost with a killed worker blocks none after it.
+ASSIGNMENT_MARKER_KEY = f"{livestate.PREFIX}:assignment-queued"
 
 
 def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
@@ -59,6 +63,27 @@ def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
             # Unmarked, so that asking again queues them: a marker without its task would block them.
             livestate.round_trip([("DEL", *(livestate.step_marker_key(name) for name in queued[start:]))])
             raise
+
+
+def queue_assignment() -> None:
+    """Queue an assignment run unless one is queued already (`ASSIGNMENT_MARKER_KEY`)."""
+    [marked] = livestate.round_trip(
+        [("SET", ASSIGNMENT_MARKER_KEY, 1, "NX", "EX", tuning.ASSIGNMENT_MARKER_SECONDS)]
+    )
+    if isinstance(marked, Exception):
+        raise marked
+    if marked is None:
+        return
+    try:
+        app.send_task(ASSIGN_TASK, (), queue=settings.STEP_QUEUE, producer=_thread_producer())
+    except Exception:
+        assignment_marker_clear()  # a marker without its task would block every later run
+        raise
+
+
+def assignment_marker_clear() -> None:
+    """Let the next request queue a run: the run that clears it reads the missions afterwards."""
+    livestate.round_trip([("DEL", ASSIGNMENT_MARKER_KEY)])
 
 
 def _send_step_task(names: list[str], at: float) -> None:
@@ -99,21 +124,28 @@ def queue_steps_soon(names: Iterable[str]) -> None:
     _sender.add(names, at=time.time())
 
 
+def queue_assignment_soon() -> None:
+    """`queue_assignment` from this process's sender thread (as `queue_steps_soon`)."""
+    _sender.add((), at=time.time(), assignment=True)
+
+
 class _StepSender:
     """Sends the requested steps from a thread of its own; while Redis or the broker is away it keeps
     them and tries again every `tuning.UNQUEUED_RETRY_SECONDS` until they are queued."""
 
     def __init__(self) -> None:
         self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
+        self._assignment = False  # an assignment run is asked for
         self._at: float | None = None  # when the oldest of them was requested
         self._sending = False
         self._changed = threading.Condition()
         self._thread: threading.Thread | None = None
 
-    def add(self, names: Iterable[str], *, at: float) -> None:
+    def add(self, names: Iterable[str], *, at: float, assignment: bool = False) -> None:
         with self._changed:
             self._names.update(dict.fromkeys(names))
-            if not self._names:
+            self._assignment = self._assignment or assignment
+            if not self._names and not self._assignment:
                 return
             self._at = at if self._at is None else min(self._at, at)
             if self._thread is None or not self._thread.is_alive():
@@ -124,24 +156,28 @@ class _StepSender:
     def wait_until_queued(self, timeout: float) -> bool:
         """Wait until every request made so far is queued (at exit); False if `timeout` s passed first."""
         with self._changed:
-            return self._changed.wait_for(lambda: not self._names and not self._sending, timeout)
+            return self._changed.wait_for(
+                lambda: not self._names and not self._assignment and not self._sending, timeout
+            )
 
     def _send_forever(self) -> None:
         failing = False
         while True:
             with self._changed:
-                self._changed.wait_for(lambda: self._names)
-                names, at = list(self._names), self._at or time.time()
-                self._names, self._at, self._sending = {}, None, True
+                self._changed.wait_for(lambda: self._names or self._assignment)
+                names, at, assignment = list(self._names), self._at or time.time(), self._assignment
+                self._names, self._at, self._assignment, self._sending = {}, None, False, True
             try:
                 queue_steps(names, at=at)
+                if assignment:
+                    queue_assignment()
             except (redis.RedisError, kombu.exceptions.OperationalError, OSError) as error:
                 if not failing:
                     logger.warning(
                         "steps not queued (%s); trying again every %s s", error, tuning.UNQUEUED_RETRY_SECONDS
                     )
                 failing = True
-                self.add(names, at=at)
+                self.add(names, at=at, assignment=assignment)
                 time.sleep(tuning.UNQUEUED_RETRY_SECONDS)
             else:
                 if failing:

@@ -12,10 +12,16 @@ from django.db import connections
 from changes.services import changes_trim
 from kit.db import drop_broken_connections
 from missions import selectors as mission_selectors
-from missions.services import mission_notify_finished
+from missions.services import mission_notify_finished, missions_assign
 from robots.status import robot_check_heartbeats
 from workers.long_lived import keep_trying, retry_delay, settle_long_lived_process
-from workers.step_requests import STEP_TASK, queue_steps
+from workers.step_requests import (
+    ASSIGN_TASK,
+    STEP_TASK,
+    assignment_marker_clear,
+    queue_assignment,
+    queue_steps,
+)
 from workers.step_runs import NOTIFY_TASK, step_and_publish
 
 logger = logging.getLogger(__name__)
@@ -41,6 +47,22 @@ def step_robots(self: Task, names: list[str], requested_at: float | None = None)
         delay = retry_delay(self.request.retries + 1)
         logger.warning("steps of %d robots failed; trying them again in %.1f s", len(failed), delay)
         raise self.retry(args=(failed, requested_at), countdown=delay)
+
+
+@shared_task(name=ASSIGN_TASK, ignore_result=True)
+def assign_missions() -> None:
+    """Bind unbound missions to free capable robots. The marker goes first: a request made during the run
+    queues one more, which sees what this one may have read too early."""
+    assignment_marker_clear()
+    missions_assign()
+
+
+@shared_task(name="fleet.assign_waiting", ignore_result=True)
+def assign_waiting() -> None:
+    """Beat's safety net for assignment: a run while unbound missions wait, whatever wake-up was lost (or
+    a robot became free in a way nothing asks a run for: charged, out of teleop, its error cleared)."""
+    if mission_selectors.unbound_missions_wait():
+        queue_assignment()
 
 
 class NotifyFailedRetryably(Exception):

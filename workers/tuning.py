@@ -28,6 +28,9 @@ DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however
 
 # A queued-step marker expires on its own, so a step lost with a killed worker cannot block later ones.
 STEP_MARKER_SECONDS = 10
+# How long a queued assignment run keeps others from being queued, at most (its marker's expiry): a run lost
+# with a killed worker delays the next by no more than this.
+ASSIGNMENT_MARKER_SECONDS = 10
 # A step request that could not be queued (Redis or the broker away) is tried again this often.
 UNQUEUED_RETRY_SECONDS = 1.0
 

@@ -70,6 +70,16 @@ README_MISSIONS = {
         _route("goto_dropoff", _waypoint(0, 0)),
     ),
 }
+# A mission posted without a robot: any robot carrying the label and listing the action type may take it.
+UNBOUND_MISSION = {
+    "robot_selector": {"labels": ["forklift"], "robot_types": [], "action_types": ["dummy_action"]},
+    "priority": 10,
+    "mission_tree": [
+        _route("goto_pickup", _waypoint(1.5, 0.8)),
+        _dummy_action("pickup_pallet", should_fail=0),
+    ],
+    "name": "unbound_mission_example",
+}
 MISSION_EXAMPLE = OpenApiExample(
     "A running mission",
     response_only=True,
@@ -103,6 +113,8 @@ MISSION_EXAMPLE = OpenApiExample(
         "deadline": None,
         "needs_canceled": False,
         "update_nodes": None,
+        "priority": 0,
+        "robot_selector": None,
         "name": "simple_mission_example",
         "status": {
             "state": "RUNNING",
@@ -116,6 +128,8 @@ MISSION_EXAMPLE = OpenApiExample(
             "end_timestamp": None,
             "failure_reason": None,
             "failure_category": None,
+            "waiting_reason": None,
+            "assignment": [],
         },
         "lifecycle": "ALIVE",
     },
@@ -147,7 +161,8 @@ MISSION_LIST = dict(
     summary="List missions",
     description=(
         "All missions in submission order (most_recent: newest start first), narrowed by the filters "
-        "(combined with AND)."
+        "(combined with AND). unbound=true lists the missions waiting for assignment; robot=NAME those of "
+        "a robot, those assignment bound to it included."
     ),
     responses={200: MissionSerializer(many=True), 400: bad_request(SCHEMA_ERROR_EXAMPLE)},
     examples=[MISSION_EXAMPLE],
@@ -158,12 +173,31 @@ MISSION_CREATE = dict(
     summary="Submit a mission",
     description=(
         "Queues a mission for a robot (which need not exist yet); a robot runs its missions one after "
-        "another in submission order. Without a name or prefix the mission gets a random id as name."
+        "another, the highest priority first, in submission order among equals (a running mission is "
+        "never preempted). Without a robot the mission is unbound: the dispatcher binds it to a free "
+        "capable robot (online, idle, charged above its critical level, not in teleop, meeting "
+        "robot_selector, the mission's maps enabled) when one is free, the nearest to its first waypoint "
+        "first, and its robot field then holds that robot's name; until then robot is null and "
+        "status.waiting_reason says why it waits. Without a name or prefix the mission gets a random id "
+        "as name."
     ),
     request=MissionCreateSerializer,
     responses={
         200: MissionSerializer,
         400: bad_request(
+            OpenApiExample(
+                "A selector beside a robot",
+                value={
+                    "detail": [
+                        {
+                            "loc": ["body", "robot_selector"],
+                            "msg": "Only a mission without robot has a robot_selector.",
+                            "type": "selector_with_robot",
+                        }
+                    ]
+                },
+                status_codes=["400"],
+            ),
             OpenApiExample(
                 "Invalid tree",
                 value={
@@ -178,6 +212,7 @@ MISSION_CREATE = dict(
     },
     examples=[
         *(OpenApiExample(name, value=body, request_only=True) for name, body in README_MISSIONS.items()),
+        OpenApiExample("unbound_mission_example", value=UNBOUND_MISSION, request_only=True),
         MISSION_EXAMPLE,
     ],
 )

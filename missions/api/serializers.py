@@ -25,6 +25,7 @@ from kit.api.serializers import ObjectNameSerializer, Pose2DSerializer, SpecSeri
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
+from missions.services import PRIORITY_MAX, PRIORITY_MIN
 from missions.tuning import MAX_NOTIFY_TIMEOUT
 
 NOTIFY_URL_SCHEMES = frozenset({"http", "https"})
@@ -210,10 +211,50 @@ def schema_constraints(result: dict, generator: Any, request: Any, public: bool)
 
 # --- the mission -------------------------------------------------------------------------------------------
 
+def _names_field(help_text: str) -> serializers.ListField:
+    return serializers.ListField(
+        child=JsonStringField(),
+        default=list,
+        max_length=settings.API_MAX_LABELS,
+        help_text=f"{help_text} At most {settings.API_MAX_LABELS}.",
+    )
+
+
+class RobotSelectorSerializer(StrictSerializer):
+    """Which robots may run an unbound mission; an omitted or empty field asks nothing. A selector no robot
+    meets yet is accepted: the mission waits, its waiting_reason says for what."""
+
+    labels = _names_field("The robot carries every one of these labels.")
+    robot_types = _names_field("The robot's type (its factsheet's agv_class) is one of these.")
+    action_types = _names_field("The robot's factsheet lists every one of these action types.")
+
 
 class MissionSpecSerializer(SpecSerializer):
     robot = ObjectNameField(
-        help_text="Name of the robot to run the mission; it need not exist yet.",
+        required=False,
+        allow_null=True,
+        default=None,
+        help_text=(
+            "Name of the robot to run the mission; it need not exist yet. Omitted or null: the mission is "
+            "unbound, and the dispatcher binds it to a free capable robot (see robot_selector), whose name "
+            "it then holds; until then status.waiting_reason says why it waits."
+        ),
+    )
+    priority = JsonIntegerField(
+        default=0,
+        min_value=PRIORITY_MIN,
+        max_value=PRIORITY_MAX,
+        help_text=(
+            "Higher first: a robot's next mission is the highest-priority one of its queue (oldest first "
+            "among equals), and assignment serves higher priorities first. A running mission is never "
+            "preempted."
+        ),
+    )
+    robot_selector = RobotSelectorSerializer(
+        required=False,
+        allow_null=True,
+        default=None,
+        help_text="Only on a mission without robot: which robots may run it. Null: any robot.",
     )
     mission_tree = MissionNodeSerializer(
         many=True,
@@ -242,6 +283,14 @@ class MissionSpecSerializer(SpecSerializer):
         help_text="New waypoints per route node, set by POST /mission/{name}/update.",
     )
 
+    def validate(self, attrs: dict) -> dict:
+        if attrs.get("robot") is not None and attrs.get("robot_selector") is not None:
+            raise serializers.ValidationError(
+                {"robot_selector": ["Only a mission without robot has a robot_selector."]},
+                code="selector_with_robot",
+            )
+        return attrs
+
 
 class MissionCreateSerializer(ObjectNameSerializer, MissionSpecSerializer):
     """A mission's spec plus the name (or name prefix) of the new mission."""
@@ -250,6 +299,13 @@ class MissionCreateSerializer(ObjectNameSerializer, MissionSpecSerializer):
 class NodeStatusSerializer(serializers.Serializer):
     state = serializers.ChoiceField(choices=MissionState.choices)
     error_msg = serializers.CharField(allow_null=True)
+
+
+class BindingSerializer(serializers.Serializer):
+    robot = serializers.CharField()
+    bound_at = serializers.DateTimeField()
+    released_at = serializers.DateTimeField(allow_null=True)
+    reason = serializers.CharField(allow_null=True, help_text="Why the binding was released.")
 
 
 class MissionStatusSerializer(serializers.Serializer):
@@ -268,7 +324,15 @@ class MissionStatusSerializer(serializers.Serializer):
     waiting_reason = serializers.CharField(
         allow_null=True,
         help_text="Why a queued mission has not started yet (e.g. the robot is offline, a map it names is "
-        "not enabled), or why a running mission's next route leaf waits for its map.",
+        "not enabled; for an unbound mission: no robot carries its labels, every capable robot is busy, "
+        "...), or why a running mission's next route leaf waits for its map.",
+    )
+    assignment = BindingSerializer(
+        many=True,
+        help_text="The robots assignment bound the mission to, oldest first (empty for a mission posted "
+        "with its robot). A binding released (its robot went offline, errored, ran low or was deleted "
+        "before taking the mission's first order) has released_at and reason; the mission is then "
+        "unbound again.",
     )
 
 
@@ -297,6 +361,8 @@ class MissionSerializer(MissionSpecSerializer):
             "deadline": _datetime(instance.deadline),
             "needs_canceled": instance.needs_canceled,
             "update_nodes": instance.update_nodes,
+            "priority": instance.priority,
+            "robot_selector": instance.robot_selector,
             "name": instance.name,
             "status": {
                 "state": instance.state,
@@ -308,6 +374,7 @@ class MissionSerializer(MissionSpecSerializer):
                 "failure_reason": instance.failure_reason,
                 "failure_category": instance.failure_category,
                 "waiting_reason": instance.waiting_reason,
+                "assignment": instance.assignment,
             },
             "lifecycle": instance.lifecycle,
         }

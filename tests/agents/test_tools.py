@@ -51,7 +51,8 @@ def test_tools_are_listed_with_their_schemas(mcp):
     assert tools["dispatch_mission"].annotations.readOnlyHint is False
     # Any mission tree: POST /mission's body as the API's OpenAPI schema states it.
     tree = tools["create_mission"].inputSchema
-    assert set(tree["required"]) == {"robot", "mission_tree"}
+    assert set(tree["required"]) == {"mission_tree"}  # without a robot: assignment picks one
+    assert {"robot", "priority", "robot_selector"} <= set(tree["properties"])
     assert tree["properties"]["mission_tree"]["items"] == {"$ref": "#/$defs/MissionNodeRequest"}
     assert {"route", "action", "selector"} <= set(tree["$defs"]["MissionNodeRequest"]["properties"])
 

@@ -107,6 +107,10 @@ class ProcessExit:
     tail: str = ""
 
 
+# A PostedMission's robot when the load posted it without one (assignment binds it).
+UNBOUND = "(unbound)"
+
+
 @dataclass(frozen=True)
 class PostedMission:
     """A mission the load posted: its robot and its leaves as (index in mission_tree, name)."""
@@ -461,6 +465,43 @@ def check_leaves(
 
 
 # --- 5. headerIds -------------------------------------------------------------------------------------
+
+
+def check_bindings(
+    posted: Sequence[PostedMission],
+    final: Mapping[str, Mapping[str, Any] | None],
+    messages: Sequence[WireMessage],
+) -> CheckResult:
+    """None bound twice (issue 41): a mission posted without a robot has at most one binding not given
+    back, its robot is its latest binding's, and its orders went only to robots it was bound to; a
+    mission posted with its robot was never bound by assignment. (A robot's one mission at a time is
+    check 3's.)"""
+    result = CheckResult("none bound twice")
+    robots_of_orders: dict[str, set[str]] = defaultdict(set)
+    for message in messages:
+        if message.kind == "order" and message.data is not None:
+            parsed = parse_order_id(carried_leaf(message.data))
+            if parsed is not None:
+                robots_of_orders[parsed[0]].add(message.serial)
+    unbound = 0
+    for mission in posted:
+        obj = final.get(mission.name) or {}
+        bindings = (obj.get("status") or {}).get("assignment") or []
+        if mission.robot != UNBOUND:
+            if bindings:
+                result.problems.append(f"mission {mission.name} of {mission.robot} was bound: {bindings}")
+            continue
+        unbound += 1
+        held = [binding for binding in bindings if binding.get("released_at") is None]
+        if len(held) > 1:
+            result.problems.append(f"mission {mission.name} is bound to {len(held)} robots at once: {held}")
+        if obj.get("robot") is not None and (not bindings or bindings[-1]["robot"] != obj["robot"]):
+            result.problems.append(f"mission {mission.name}: robot {obj['robot']} is not its last binding")
+        strangers = robots_of_orders[mission.name] - {binding["robot"] for binding in bindings}
+        if strangers:
+            result.problems.append(f"mission {mission.name}: orders went to robots never bound: {strangers}")
+    result.notes.append(f"{unbound} missions posted without a robot")
+    return result
 
 
 def check_header_ids(

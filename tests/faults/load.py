@@ -16,7 +16,7 @@ from typing import Any
 import requests
 
 from simulator.config import RobotConfig
-from tests.faults.checks import HttpAttempt, PostedMission
+from tests.faults.checks import UNBOUND, HttpAttempt, PostedMission
 
 MISSION_TIMEOUT = 900.0  # s: far beyond the suite's bounds; a mission that times out is a finding
 RETRY_PERIOD = 0.3
@@ -25,7 +25,7 @@ RETRY_PERIOD = 0.3
 @dataclass(frozen=True)
 class PlannedMission:
     name: str
-    robot: str
+    robot: str | None  # None: posted without a robot, for assignment to bind (issue 41)
     tree: list[dict[str, Any]]
 
     def posted(self) -> PostedMission:
@@ -34,7 +34,9 @@ class PlannedMission:
             for index, node in enumerate(self.tree)
             if "route" in node or "action" in node
         )
-        return PostedMission(self.name, self.robot, leaves, tuple(node["name"] for node in self.tree))
+        return PostedMission(
+            self.name, self.robot or UNBOUND, leaves, tuple(node["name"] for node in self.tree)
+        )
 
     def body(self) -> dict[str, Any]:
         return {
@@ -47,9 +49,12 @@ class PlannedMission:
         }
 
 
-def plan_missions(rng: random.Random, robots: list[RobotConfig], count: int) -> list[PlannedMission]:
+def plan_missions(
+    rng: random.Random, robots: list[RobotConfig], count: int, *, unbound_share: float = 0.0
+) -> list[PlannedMission]:
     """`count` missions spread over `robots` (round robin, in a shuffled order): 1-3 route leaves of 1-3
-    waypoints each near the robot's start, and 0-2 `dummy_action` leaves that never fail, in random order."""
+    waypoints each near the robot's start, and 0-2 `dummy_action` leaves that never fail, in random order.
+    A share of them (`unbound_share`) is posted without a robot: assignment binds it."""
     order = list(robots)
     rng.shuffle(order)
     planned = []
@@ -75,7 +80,8 @@ def plan_missions(rng: random.Random, robots: list[RobotConfig], count: int) -> 
             leaves.insert(
                 rng.randint(0, len(leaves)), {"name": f"act{a}", "parent": "root", "action": action}
             )
-        planned.append(PlannedMission(f"fm{k:04d}", robot.name, leaves))
+        unbound = unbound_share > 0 and rng.random() < unbound_share
+        planned.append(PlannedMission(f"fm{k:04d}", None if unbound else robot.name, leaves))
     return planned
 
 

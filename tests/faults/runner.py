@@ -53,6 +53,7 @@ class RunConfig:
     fault_gap: tuple[float, float] = (5.0, 15.0)
     downtime: tuple[float, float] = (0.0, 5.0)
     settle_seconds: float = 3.0  # after the last mission ended, for the last messages to arrive
+    unbound_share: float = 0.25  # of the missions posted without a robot, for assignment to bind
 
 
 @dataclass(frozen=True)
@@ -242,7 +243,12 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
                 return sum(1 for r in robots if r["status"]["online"]) >= config.robots
 
             wait_until(all_online, "every simulated robot online", timeout=60, period=0.5)
-            planned = plan_missions(random.Random(f"load-{config.seed}"), stack.robots, config.missions)
+            planned = plan_missions(
+                random.Random(f"load-{config.seed}"),
+                stack.robots,
+                config.missions,
+                unbound_share=config.unbound_share,
+            )
             before = round(len(planned) * config.before_fraction)
             pre = Poster(api, [(0.0, m) for m in planned[:before]])
             pre.run()
@@ -319,6 +325,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         checks.check_leaves(
             posted_missions, final, messages, [*blind, *broker_down], origin, restarts=restarts
         ),
+        checks.check_bindings(posted_missions, final, messages),
         checks.check_header_ids(
             messages, [*blind, *broker_excuse], since=observer.started_at, origin=origin, events=events
         ),

@@ -475,3 +475,51 @@ def test_missions_plan_leaves_that_never_fail():
         assert 1 <= len(routes) <= 3 and len(actions) <= 2
         assert all(n["action"]["action_parameters"]["should_fail"] == 0 for n in actions)
         assert [i for i, _ in mission.posted().leaves] == list(range(len(mission.tree)))
+
+
+def binding(robot: str, released: bool = False) -> dict[str, Any]:
+    return {
+        "robot": robot,
+        "bound_at": "2026-01-01T00:00:01.000000Z",
+        "released_at": "2026-01-01T00:00:02.000000Z" if released else None,
+        "reason": "Robot is offline" if released else None,
+    }
+
+
+def test_bindings_pass_for_a_mission_bound_given_back_and_bound_again():
+    posted = [checks.PostedMission("m1", checks.UNBOUND, ((0, "r"),)), checks.PostedMission("m2", "b", ())]
+    final = {
+        "m1": {"robot": "b", "status": {"assignment": [binding("a", released=True), binding("b")]}},
+        "m2": {"robot": "b", "status": {"assignment": []}},
+    }
+    messages = [order(1.0, "b", "m1-n0-r0", 0)]
+
+    assert checks.check_bindings(posted, final, messages).ok
+
+
+def test_bindings_fail_for_two_at_once_a_stranger_robot_or_a_named_mission_bound():
+    posted = [checks.PostedMission("m1", checks.UNBOUND, ((0, "r"),)), checks.PostedMission("m2", "b", ())]
+    final = {
+        "m1": {"robot": "b", "status": {"assignment": [binding("a"), binding("b")]}},
+        "m2": {"robot": "b", "status": {"assignment": [binding("b")]}},
+    }
+    messages = [order(1.0, "c", "m1-n0-r0", 0)]
+
+    problems = checks.check_bindings(posted, final, messages).problems
+
+    assert len(problems) == 3
+    assert any("2 robots at once" in p for p in problems)
+    assert any("never bound: {'c'}" in p for p in problems)
+    assert any("m2 of b was bound" in p for p in problems)
+
+
+def test_a_share_of_the_planned_missions_is_unbound():
+    robots = spread_robots(4, "r")
+    planned = plan_missions(random.Random(1), robots, 200, unbound_share=0.25)
+
+    unbound = [m for m in planned if m.robot is None]
+    assert 20 < len(unbound) < 80
+    assert all(m.body()["robot"] is None and m.posted().robot == checks.UNBOUND for m in unbound)
+    assert [m.robot for m in plan_missions(random.Random(1), robots, 20)] == [
+        m.robot for m in plan_missions(random.Random(1), robots, 20, unbound_share=0.0)
+    ]

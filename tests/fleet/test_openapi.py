@@ -14,7 +14,7 @@ from kit.api.fields import MAX_SECONDS
 from kit.api.names import OBJECT_NAME_MAX_LENGTH
 from missions.tuning import MAX_NOTIFY_TIMEOUT
 from stations.models import MAX_CAPACITY
-from tests.readme import README_MISSIONS, README_ROBOT
+from tests.readme import README_MISSIONS, README_ROBOT, UNBOUND_MISSION_EXAMPLE
 
 ENDPOINTS = {
     "/robot": {"get", "post"},
@@ -39,7 +39,7 @@ ROBOT_FILTERS = {
     "names",
     "robot_type",
 }
-MISSION_FILTERS = {"state", "started_after", "started_before", "robot", "most_recent"}
+MISSION_FILTERS = {"state", "started_after", "started_before", "robot", "unbound", "most_recent"}
 STATION_FILTERS = {"kind", "map_id", "robot_type", "names"}
 
 
@@ -111,6 +111,7 @@ def test_filters_are_documented(schema):
     assert robot_filters["online"]["schema"]["type"] == "boolean"
     assert mission_filters["started_after"]["schema"]["format"] == "date-time"
     assert mission_filters["most_recent"]["schema"]["type"] == "integer"
+    assert mission_filters["unbound"]["schema"]["type"] == "boolean"
 
 
 def test_teleop_takes_its_action_in_the_params_query_parameter(schema):
@@ -122,7 +123,10 @@ def test_teleop_takes_its_action_in_the_params_query_parameter(schema):
 
 
 def test_the_readme_examples_are_the_documented_request_examples(schema):
-    assert request_examples(schema["paths"]["/mission"]["post"]) == README_MISSIONS
+    assert request_examples(schema["paths"]["/mission"]["post"]) == {
+        **README_MISSIONS,
+        UNBOUND_MISSION_EXAMPLE["name"]: UNBOUND_MISSION_EXAMPLE,
+    }
     assert list(request_examples(schema["paths"]["/robot"]["post"]).values()) == [README_ROBOT]
 
 

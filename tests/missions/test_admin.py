@@ -211,3 +211,35 @@ def test_bulk_delete_leaves_a_running_mission_pending_delete(admin_client: Clien
         messages.INFO,
         "PENDING_DELETE until their robot has confirmed the cancel: running.",
     ) in sent_messages(response)
+
+
+def test_unbound_missions_are_listed_with_their_reason_and_priority_and_filtered(admin_client: Client):
+    MissionFactory(name="named", robot="carter01")
+    MissionFactory(name="free", robot=None, priority=7, waiting_reason="Every capable robot is busy")
+
+    response = admin_client.get(CHANGELIST, {"robot__isempty": "1"})
+
+    assert listed(response) == ["free"]
+    content = response.content.decode()
+    assert "(unbound)" in content and "Every capable robot is busy" in content
+    assert admin_client.get(change_url(Mission.objects.get(name="free"))).status_code == 200
+
+
+def test_priority_actions_change_a_queued_missions_priority_through_the_service(admin_client: Client):
+    queued = MissionFactory(name="queued", robot=None, priority=995)
+    done = MissionFactory(name="done", completed=True)
+
+    admin_client.post(CHANGELIST, {"action": "lower_priority", "_selected_action": [queued.name]})
+    assert Mission.objects.get(name="queued").priority == 985
+    response = admin_client.post(
+        CHANGELIST, {"action": "raise_priority", "_selected_action": [queued.name, done.name]}, follow=True
+    )
+
+    assert Mission.objects.get(name="queued").priority == 995
+    assert Mission.objects.get(name="done").priority == 0
+    assert any(level == messages.WARNING for level, _ in sent_messages(response))
+    response = admin_client.post(
+        CHANGELIST, {"action": "raise_priority", "_selected_action": [queued.name]}, follow=True
+    )
+    assert Mission.objects.get(name="queued").priority == 995  # 1005 is out of range
+    assert any("within -1000..1000" in text for _, text in sent_messages(response))

@@ -27,6 +27,7 @@ def test_the_missions_table_has_only_the_indexes_its_queries_use() -> None:
         "mission_pending_deadline_idx",  # beat's sweep
         "mission_unnoticed_idx",  # beat's sweep
         "mission_running_idx",  # beat's sweep
+        "mission_unbound_idx",  # assignment's unbound queue, GET /mission?unbound=true
     }
 
 

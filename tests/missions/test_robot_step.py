@@ -544,3 +544,20 @@ def test_a_step_of_an_unknown_robot_does_nothing(db: None) -> None:
     outcome = robot_step(name="nobody-here", now=NOW)
 
     assert (outcome.address, outcome.messages) == (None, [])
+
+
+def test_the_highest_priority_queued_mission_starts_first_and_equals_in_fifo_order(robot: Robot) -> None:
+    """A robot's queue by priority (issue 41): default-priority missions keep the reference's FIFO."""
+    route = {"name": "r", "route": {"waypoints": [{"x": 5.0, "y": 6.0, "theta": 0.0, "map_id": "map"}]}}
+    for name, priority in (("low", 0), ("high-1", 3), ("high-2", 3)):
+        spec = {"robot": robot.name, "mission_tree": [route], "priority": priority}
+        mission_create(actor=TEST_ACTOR, name=name, prefix=None, spec=spec)
+    Robot.objects.filter(name=robot.name).update(online=False)
+    step(robot)  # offline: nothing starts
+    Robot.objects.filter(name=robot.name).update(online=True)
+
+    [order] = orders(step(robot))
+
+    assert order.order_id.startswith("high-1-")
+    assert Mission.objects.get(name="high-1").state == MissionState.RUNNING
+    assert {Mission.objects.get(name=n).state for n in ("low", "high-2")} == {MissionState.PENDING}

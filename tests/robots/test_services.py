@@ -49,11 +49,13 @@ def test_create_maps_the_api_shaped_spec_to_the_model():
     )
 
 
-def test_create_registers_exactly_one_wake_for_after_commit(django_capture_on_commit_callbacks):
+def test_create_registers_one_step_and_one_assignment_request_for_after_commit(
+    django_capture_on_commit_callbacks,
+):
     with django_capture_on_commit_callbacks() as callbacks:
         robot_create(actor=TEST_ACTOR, name="carter01", prefix=None, spec={})
 
-    assert len(callbacks) == 1
+    assert len(callbacks) == 2  # its step, and an assignment run: it may be what unbound missions wait for
 
 
 def test_a_refused_create_wakes_nothing(django_capture_on_commit_callbacks):

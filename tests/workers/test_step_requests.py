@@ -100,3 +100,49 @@ def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
             private.kill()
 
     assert step_tasks(names) == [names[:1]]  # the broker was up all along
+
+
+def _assignment_tasks() -> list[bytes]:
+    return [
+        message
+        for message in livestate.client().lrange(settings.STEP_QUEUE, 0, -1)
+        if orjson.loads(message)["headers"]["task"] == step_requests.ASSIGN_TASK
+    ]
+
+
+@pytest.fixture
+def no_assignment_queued() -> Iterator[None]:
+    def clear() -> None:
+        redis = livestate.client()
+        redis.delete(step_requests.ASSIGNMENT_MARKER_KEY)
+        for message in _assignment_tasks():
+            redis.lrem(settings.STEP_QUEUE, 0, message)
+
+    clear()
+    yield
+    clear()
+
+
+def test_assignment_runs_are_coalesced_one_queued_at_a_time(no_assignment_queued: None) -> None:
+    step_requests.queue_assignment()
+    step_requests.queue_assignment()
+    assert len(_assignment_tasks()) == 1
+
+    step_requests.assignment_marker_clear()  # what the run does first
+    step_requests.queue_assignment()
+    assert len(_assignment_tasks()) == 2
+
+
+def test_a_lost_assignment_run_blocks_later_ones_only_until_its_marker_expires(
+    no_assignment_queued: None,
+) -> None:
+    step_requests.queue_assignment()
+    ttl = livestate.client().ttl(step_requests.ASSIGNMENT_MARKER_KEY)
+    assert 0 < ttl <= step_requests.tuning.ASSIGNMENT_MARKER_SECONDS
+
+
+def test_assignment_asked_soon_is_queued_by_the_sender_thread(no_assignment_queued: None) -> None:
+    step_requests.queue_assignment_soon()
+
+    assert step_requests.wait_until_queued(5.0)
+    assert len(_assignment_tasks()) == 1

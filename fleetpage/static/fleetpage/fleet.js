@@ -423,7 +423,7 @@ function receive(kind, object) {
     if (!deleted && object.status.state === "RUNNING") running.set(object.robot, object.name);
     else if (running.get(object.robot) === object.name) running.delete(object.robot);
     changed.missions.add(object.name);
-    changed.missionRobots.add(object.robot);
+    if (object.robot !== null) changed.missionRobots.add(object.robot);
   }
   scheduleFrame();
 }
@@ -490,13 +490,14 @@ function drawCounts() {
 // --- the mission list -------------------------------------------------------------------------------------
 
 const rows = new Map(); // mission name -> its <tr>
+const UNBOUND = "(unbound)"; // a mission's robot until assignment binds it (its waiting reason: the state's title)
 
 function missionShown(mission) {
   const state = $("filter-state").value;
   const robot = $("filter-robot").value.trim().toLowerCase();
   const name = $("filter-name").value.trim().toLowerCase();
   return (!state || mission.status.state === state) &&
-    (!robot || mission.robot.toLowerCase().includes(robot)) &&
+    (!robot || (mission.robot ?? UNBOUND).toLowerCase().includes(robot)) &&
     (!name || mission.name.toLowerCase().includes(name));
 }
 
@@ -550,7 +551,9 @@ function missionRow(name) {
 function fillMissionRow(row, mission) {
   const { state, current_node: current, start_timestamp: started, failure_reason: failure } = mission.status;
   row.dataset.state = state;
-  row.querySelector(".robot-link").textContent = mission.robot;
+  // A mission posted without a robot shows "(unbound)" until assignment binds it, then who took it.
+  row.querySelector(".robot-link").textContent = mission.robot ?? UNBOUND;
+  row.querySelector(".robot-link").disabled = mission.robot === null;
   row.querySelector(".state").textContent = state;
   row.querySelector(".state").dataset.state = state;
   row.querySelector(".state").title = failure ?? mission.status.waiting_reason ?? "";

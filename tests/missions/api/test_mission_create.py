@@ -115,6 +115,7 @@ def test_a_new_mission_has_every_node_pending_and_an_empty_status(api):
         "failure_reason": None,
         "failure_category": None,
         "waiting_reason": None,
+        "assignment": [],
     }
     assert response.json()["lifecycle"] == "ALIVE"
 
@@ -314,7 +315,6 @@ def test_status_in_the_body_is_a_usage_error(api):
 @pytest.mark.parametrize(
     ("body", "loc"),
     [
-        ({"mission_tree": [route()]}, ["body", "robot"]),
         ({"robot": "carter01"}, ["body", "mission_tree"]),
         (mission(), ["body", "mission_tree"]),
         (mission(route(), colour="red"), ["body", "colour"]),

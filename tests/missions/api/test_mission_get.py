@@ -37,6 +37,7 @@ def test_returns_the_mission_with_its_status(api):
         "failure_reason": "Mission timed out",
         "failure_category": "TIMEOUT",
         "waiting_reason": None,
+        "assignment": [],
     }
 
 

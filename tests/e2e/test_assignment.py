@@ -1,0 +1,114 @@
+"""Missions for any capable robot end to end (issue 41): real API, bridge, workers, beat, Mosquitto and
+simulated robots. A mission posted without a robot is bound by assignment to the best free capable robot
+and runs there; one nobody can do waits with its reason until a robot qualifies."""
+
+from typing import Any
+
+import pytest
+from rest_framework.test import APIClient
+
+from tests.e2e.helpers import action, create_robot, get, route, wait_mission, wait_mission_where, wait_robot
+from tests.waiting import wait_for
+
+pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+
+
+def post_unbound(api: APIClient, name: str, tree: list[dict[str, Any]], **spec: Any) -> dict[str, Any]:
+    body = {"name": name, "mission_tree": tree, "timeout": 120, **spec}
+    response = api.post("/mission", body, format="json")
+    assert response.status_code == 200, response.content
+    assert response.json()["robot"] is None
+    return response.json()
+
+
+def robots_at(api, simulator, unique, *places: tuple[str, float], **spec: Any) -> list[str]:
+    """Simulated robots created through the API at (x, 0) on "map", online with their pose known."""
+    names = [unique(base) for base, _ in places]
+    simulator(*(f"{name},{x},0" for name, (_, x) in zip(names, places, strict=True)))
+    for name in names:
+        create_robot(api, name, **spec)
+    for name, (_, x) in zip(names, places, strict=True):
+        wait_for(
+            lambda name=name, x=x: get(api, "robot", name)["status"]["online"]
+            and get(api, "robot", name)["status"]["pose"]["x"] == x,
+            message=f"robot {name} online at x={x}",
+        )
+    return names
+
+
+def bound_robot(api, mission: str) -> str:
+    return wait_for(lambda: get(api, "mission", mission)["robot"], message=f"mission {mission} bound")
+
+
+def test_the_nearest_of_three_robots_takes_the_mission(api, simulator, unique):
+    _, _, far = robots_at(api, simulator, unique, ("west", 0), ("middle", 10), ("east", 20))
+    mission = unique("near-east")
+    post_unbound(api, mission, [route("go", (19, 0))])
+
+    assert bound_robot(api, mission) == far
+    done = wait_mission(api, mission)
+    assert done["status"]["state"] == "COMPLETED"
+    assert [binding["robot"] for binding in done["status"]["assignment"]] == [far]
+    assert [m["name"] for m in api.get("/mission", {"robot": far}).json()] == [mission]
+
+
+def test_labels_beat_distance(api, simulator, unique):
+    near, = robots_at(api, simulator, unique, ("near", 0))
+    far, = robots_at(api, simulator, unique, ("far", 30), labels=["forklift"])
+    mission = unique("lift")
+    post_unbound(api, mission, [route("go", (1, 0))], robot_selector={"labels": ["forklift"]})
+
+    assert bound_robot(api, mission) == far
+    assert wait_mission(api, mission)["status"]["state"] == "COMPLETED"
+    assert get(api, "robot", near)["status"]["state"] == "IDLE"
+
+
+def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, simulator, unique):
+    robot, = robots_at(api, simulator, unique, ("only", 0))
+    busy = unique("busy")
+    post_unbound(api, busy, [action("work", time=5, should_fail=0)])
+    assert bound_robot(api, busy) == robot
+    started = wait_mission(api, busy, {"RUNNING", "COMPLETED", "FAILED", "CANCELED"})
+    assert started["status"]["state"] == "RUNNING", started
+
+    low, high = unique("low"), unique("high")
+    post_unbound(api, low, [route("go", (1, 0))])
+    post_unbound(api, high, [route("go", (2, 0))], priority=5)
+    waiting = wait_mission_where(api, high, lambda status: status["waiting_reason"] is not None)
+    assert waiting["robot"] is None and waiting["status"]["waiting_reason"] == "Every capable robot is busy"
+
+    first = wait_mission(api, high)
+    second = wait_mission(api, low)
+    assert (first["robot"], second["robot"]) == (robot, robot)
+    assert first["status"]["start_timestamp"] < second["status"]["start_timestamp"]
+    assert (first["status"]["state"], second["status"]["state"]) == ("COMPLETED", "COMPLETED")
+
+
+def test_a_mission_nobody_can_do_waits_then_runs_once_a_put_gives_a_robot_the_label(api, simulator, unique):
+    robot, = robots_at(api, simulator, unique, ("plain", 0))
+    mission = unique("cold")
+    post_unbound(api, mission, [route("go", (1, 0))], robot_selector={"labels": ["cold"]})
+    waiting = wait_mission_where(api, mission, lambda status: status["waiting_reason"] is not None)
+    assert waiting["status"]["waiting_reason"] == "No robot carries labels cold"
+
+    assert api.put(f"/robot/{robot}", {"labels": ["cold"]}, format="json").status_code == 200
+
+    assert bound_robot(api, mission) == robot
+    assert wait_mission(api, mission)["status"]["state"] == "COMPLETED"
+
+
+def test_a_mission_waits_while_its_only_capable_robot_is_offline_and_runs_once_it_is_back(
+    api, simulator, unique
+):
+    robot = unique("away")
+    create_robot(api, robot, labels=["cold"], heartbeat_timeout=1)
+    mission = unique("cold")
+    post_unbound(api, mission, [route("go", (1, 0))], robot_selector={"labels": ["cold"]})
+    waiting = wait_mission_where(api, mission, lambda status: status["waiting_reason"] is not None)
+    assert waiting["status"]["waiting_reason"] == "No capable robot is online"
+
+    simulator(f"{robot},0,0")
+    wait_robot(api, robot, online=True)
+
+    assert bound_robot(api, mission) == robot
+    assert wait_mission(api, mission)["status"]["state"] == "COMPLETED"

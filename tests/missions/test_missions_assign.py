@@ -1,0 +1,197 @@
+"""`missions.services.missions_assign`: unbound missions bound to free capable robots in PostgreSQL, and the
+step giving back a mission whose robot cannot take it (issue 41). Real PostgreSQL and Redis, outside a
+test transaction, as the workers run; the robots' rows are written as the bridge writes them."""
+
+import threading
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from django.db import connection
+from django.utils import timezone
+
+from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE
+from missions.choices import MissionState
+from missions.models import Mission
+from missions.robot_step import robot_step
+from missions.services import mission_create, missions_assign
+from robots.models import Robot
+from robots.services import robot_delete
+from tests.factories import TEST_ACTOR, RobotFactory
+from tests.missions.test_robot_step import put_state
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+
+def robot(name: str, *, x: float = 0.0, y: float = 0.0, labels: tuple[str, ...] = (), **fields: Any) -> Robot:
+    """An online, charged, idle robot at (x, y) on "map"."""
+    values = dict(
+        online=True,
+        battery_level=80.0,
+        pose_x=x,
+        pose_y=y,
+        pose_map_id="map",
+        last_state_at=timezone.now(),
+        labels=list(labels),
+    )
+    return RobotFactory(name=name, **{**values, **fields})
+
+
+def unbound(name: str, *, x: float = 0.0, y: float = 0.0, **spec: Any) -> Mission:
+    route = {"route": {"waypoints": [{"x": x, "y": y, "map_id": "map"}]}}
+    return mission_create(actor=TEST_ACTOR, name=name, prefix=None, spec={"mission_tree": [route], **spec})
+
+
+def robot_of(name: str) -> str | None:
+    return Mission.objects.get(name=name).robot
+
+
+def test_the_nearest_free_robot_is_bound_and_the_binding_recorded() -> None:
+    robot("far", x=50.0)
+    robot("near", x=2.0)
+    unbound("m1", x=1.0)
+
+    assert missions_assign() == {"m1": "near"}
+
+    mission = Mission.objects.get(name="m1")
+    assert (mission.robot, mission.waiting_reason, mission.state) == ("near", None, MissionState.PENDING)
+    [binding] = mission.assignment
+    assert binding["robot"] == "near" and binding["released_at"] is None and binding["reason"] is None
+    assert binding["bound_at"].endswith("Z")
+
+
+def test_a_mission_nobody_can_do_waits_with_its_reason_until_a_robot_qualifies() -> None:
+    robot("plain")
+    unbound("m1", robot_selector={"labels": ["forklift"]})
+
+    assert missions_assign() == {}
+    assert Mission.objects.get(name="m1").waiting_reason == NO_LABELS.format(labels="forklift")
+    assert robot_of("m1") is None
+
+    Robot.objects.filter(name="plain").update(labels=["forklift"])
+    assert missions_assign() == {"m1": "plain"}
+
+
+def test_reasons_follow_the_robots_state() -> None:
+    robot("r1", online=False)
+    unbound("m1")
+    missions_assign()
+    assert Mission.objects.get(name="m1").waiting_reason == NONE_ONLINE
+
+    Robot.objects.filter(name="r1").update(online=True)
+    own = {"robot": "r1", "mission_tree": [{"route": {"waypoints": [{"x": 0, "y": 0}]}}]}
+    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec=own)
+    Mission.objects.filter(name="own").update(state=MissionState.RUNNING)
+    missions_assign()
+    assert Mission.objects.get(name="m1").waiting_reason == ALL_BUSY
+
+
+def test_a_robot_with_a_bound_mission_not_yet_started_gets_no_second_one() -> None:
+    robot("r1")
+    unbound("m1")
+    unbound("m2", priority=5)
+    assert missions_assign() == {"m2": "r1"}
+
+    assert missions_assign() == {}
+    assert robot_of("m1") is None
+
+
+def test_a_robots_own_queue_head_runs_before_younger_unbound_missions_of_its_priority() -> None:
+    robot("r1")
+    robot("r2", x=100.0)
+    route = {"route": {"waypoints": [{"x": 0, "y": 0, "map_id": "map"}]}}
+    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec={"robot": "r1", "mission_tree": [route]})
+    unbound("m1")
+
+    assert missions_assign() == {"m1": "r2"}
+
+
+def test_many_runs_at_once_never_bind_a_mission_twice_nor_a_robot_twice() -> None:
+    for index in range(12):
+        robot(f"r{index:02d}", x=float(index))
+    for index in range(30):
+        unbound(f"m{index:02d}", x=float(index % 7), priority=index % 3)
+    barrier = threading.Barrier(6)
+    results: list[dict[str, str]] = []
+    errors: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            barrier.wait()
+            for _ in range(3):
+                results.append(missions_assign())
+        except BaseException as error:  # reported below
+            errors.append(error)
+        finally:
+            connection.close()
+
+    threads = [threading.Thread(target=run) for _ in range(6)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+
+    assert not errors
+    claimed = [(mission, robot) for result in results for mission, robot in result.items()]
+    assert len({mission for mission, _ in claimed}) == len(claimed)  # no mission bound by two runs
+    assert len({robot for _, robot in claimed}) == len(claimed) == 12  # no robot given two; all used
+    bound = Mission.objects.exclude(robot=None)
+    assert sorted(bound.values_list("robot", flat=True)) == [f"r{index:02d}" for index in range(12)]
+    assert all(len(mission.assignment) == 1 for mission in bound)
+    # The 12 bound are the highest priorities first.
+    assert min(bound.values_list("priority", flat=True)) >= 1
+
+
+def test_a_step_gives_back_a_bound_mission_its_robot_cannot_start(make_robot) -> None:
+    created = make_robot(prefix="give", labels=["forklift"])
+    Robot.objects.filter(name=created.name).update(
+        online=True, battery_level=80.0, last_state_at=timezone.now()
+    )
+    put_state(created, header_id=1, battery=5.0)  # below the critical level, as the step sees it
+    unbound("m1", robot_selector={"labels": ["forklift"]})
+    assert missions_assign() == {"m1": created.name}
+
+    outcome = robot_step(name=created.name)
+
+    assert outcome.released == ["m1"]
+    mission = Mission.objects.get(name="m1")
+    assert (mission.robot, mission.state) == (None, MissionState.PENDING)
+    [binding] = mission.assignment
+    assert binding["robot"] == created.name
+    assert binding["released_at"] is not None and "Battery" in binding["reason"]
+
+
+def test_a_named_mission_is_not_given_back_by_its_robot(make_robot) -> None:
+    created = make_robot(prefix="keep")
+    Robot.objects.filter(name=created.name).update(online=True)
+    put_state(created, header_id=1, battery=5.0)
+    route = {"route": {"waypoints": [{"x": 0, "y": 0}]}}
+    spec = {"robot": created.name, "mission_tree": [route]}
+    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec=spec)
+
+    assert robot_step(name=created.name).released == []
+    assert robot_of("m1") == created.name
+
+
+def test_missions_bound_to_a_deleted_robot_go_back_to_the_pool() -> None:
+    doomed = robot("doomed")
+    unbound("m1")
+    assert missions_assign() == {"m1": "doomed"}
+
+    robot_delete(actor=TEST_ACTOR, robot=doomed)
+    missions_assign()
+
+    mission = Mission.objects.get(name="m1")
+    assert mission.robot is None
+    assert mission.assignment[-1]["reason"] == "Robot was deleted"
+
+
+def test_an_unbound_mission_past_its_deadline_fails_and_is_never_bound() -> None:
+    robot("r1")
+    unbound("late", deadline=timezone.now() - timedelta(seconds=1))
+
+    assert missions_assign() == {}
+
+    mission = Mission.objects.get(name="late")
+    assert (mission.state, mission.failure_category, mission.robot) == (MissionState.FAILED, "DEADLINE", None)
+    assert mission.node_status["root"]["state"] == MissionState.FAILED
