@@ -33,11 +33,13 @@ def test_driving_drains_the_battery_by_the_metre_and_standing_does_not():
     assert h.state.battery_state.charging is False
 
 
-def test_the_default_drain_takes_a_full_battery_to_about_a_fifth_in_a_few_minutes_of_driving():
-    metres_to_a_fifth = 80 / DEFAULT_BATTERY_DRAIN
-    minutes = metres_to_a_fifth / SimulationSettings().speed / 60
+def test_by_default_the_battery_does_not_drain_while_robots_cannot_yet_charge_by_themselves():
+    assert SimulationSettings().battery_drain == DEFAULT_BATTERY_DRAIN == 0.0
+    h = RobotHarness(FULL_ROBOT)
+    h.send_order(route((10.0, 0.0), (10.0, 6.0)))
+    h.run_until(lambda state: not state.node_states and not state.driving)
 
-    assert 2 <= minutes <= 5
+    assert charge(h) == 100.0
 
 
 def test_the_battery_never_falls_below_empty():
