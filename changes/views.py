@@ -11,11 +11,14 @@ from django.core.handlers.asgi import ASGIRequest
 from django.db import connection
 from django.db.models import QuerySet
 from django.http import HttpResponse, QueryDict, StreamingHttpResponse
-from rest_framework import status
+from drf_spectacular.utils import extend_schema
+from rest_framework import status, viewsets
+from rest_framework.decorators import action
 from rest_framework.exceptions import APIException, ErrorDetail, ValidationError
 from rest_framework.negotiation import DefaultContentNegotiation
 from rest_framework.renderers import BaseRenderer
 from rest_framework.request import Request
+from rest_framework.response import Response
 from rest_framework.serializers import BaseSerializer
 
 from access.selectors import request_credential
@@ -160,3 +163,26 @@ def _streaming(
     response["Cache-Control"] = "no-cache"
     response["X-Accel-Buffering"] = "no"  # a reverse proxy passes each event on at once
     return response
+
+
+class WatchedViewSet(viewsets.GenericViewSet):
+    """The endpoints of a kind of named object whose list (GET /<kind>) and watch stream (GET
+    /<kind>/watch) show the same `source`: the list's filters select what the stream shows, and both show
+    objects as GET /<kind>/{name} does. `queryset` and `filterset_class` describe the endpoints for the
+    OpenAPI schema; reads go through the source's selector, which applies the same filters."""
+
+    source: Source
+    lookup_field = "name"
+    lookup_value_regex = "[^/]+"
+
+    def list(self, request: Request) -> Response:
+        objects = self.source.select(filters=request.query_params)
+        return Response(self.source.serializer(objects, many=True).data)
+
+    # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
+    # /<kind>/{name}, so "watch" is never taken for an object's name.
+    @extend_schema(exclude=True)
+    @action(detail=False, methods=["get"], url_path="watch", content_negotiation_class=AnyAccept)
+    def watch(self, request: Request) -> HttpResponse:
+        """NDJSON: every object the filters select, then each change (README "Watch streams")."""
+        return watch_response(request, self.source)

@@ -1,9 +1,7 @@
 """Mission endpoints and GET /behaviors: thin methods that validate input, call a selector or service, and
 serialize."""
 
-from django.http import HttpResponse
 from drf_spectacular.utils import extend_schema, extend_schema_view
-from rest_framework import viewsets
 from rest_framework.decorators import action
 from rest_framework.request import Request
 from rest_framework.response import Response
@@ -11,7 +9,7 @@ from rest_framework.views import APIView
 
 from access.authentication import request_actor
 from changes.choices import ChangeKind
-from changes.views import AnyAccept, Source, watch_response
+from changes.views import Source, WatchedViewSet
 from kit.api.serializers import body_validated
 from missions.api import schema
 from missions.api.serializers import (
@@ -37,26 +35,14 @@ MISSIONS = Source(kind=ChangeKind.MISSION, select=mission_list, serializer=Missi
     retrieve=extend_schema(**schema.MISSION_GET),
     destroy=extend_schema(**schema.MISSION_DELETE),
 )
-class MissionViewSet(viewsets.GenericViewSet):
+class MissionViewSet(WatchedViewSet):
     """Missions. `queryset` and `filterset_class` describe the endpoints for the OpenAPI schema; reads go
     through the selectors, which apply the same MissionFilter."""
 
+    source = MISSIONS
     queryset = Mission.objects.all()
     serializer_class = MissionSerializer
     filterset_class = MissionFilter
-    lookup_field = "name"
-    lookup_value_regex = "[^/]+"
-
-    def list(self, request: Request) -> Response:
-        return Response(MissionSerializer(mission_list(filters=request.query_params), many=True).data)
-
-    # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
-    # /mission/{name}, so "watch" is never taken for a mission's name.
-    @extend_schema(exclude=True)
-    @action(detail=False, methods=["get"], url_path="watch", content_negotiation_class=AnyAccept)
-    def watch(self, request: Request) -> HttpResponse:
-        """NDJSON: every mission the filters select, then each change (README "Watch streams")."""
-        return watch_response(request, MISSIONS)
 
     def create(self, request: Request) -> Response:
         spec = body_validated(MissionCreateSerializer, request.data)

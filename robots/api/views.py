@@ -1,15 +1,13 @@
 """Robot endpoints: thin methods that validate input, call a selector or service, and serialize."""
 
-from django.http import HttpResponse
 from drf_spectacular.utils import extend_schema, extend_schema_view
-from rest_framework import viewsets
 from rest_framework.decorators import action
 from rest_framework.request import Request
 from rest_framework.response import Response
 
 from access.authentication import request_actor
 from changes.choices import ChangeKind
-from changes.views import AnyAccept, Source, watch_response
+from changes.views import Source, WatchedViewSet
 from kit.api.serializers import body_validated, query_validated
 from robots.api import schema
 from robots.api.serializers import (
@@ -39,26 +37,14 @@ ROBOTS = Source(kind=ChangeKind.ROBOT, select=robot_list, serializer=RobotSerial
     update=extend_schema(**schema.ROBOT_UPDATE),
     destroy=extend_schema(**schema.ROBOT_DELETE),
 )
-class RobotViewSet(viewsets.GenericViewSet):
+class RobotViewSet(WatchedViewSet):
     """Robots. `queryset` and `filterset_class` describe the endpoints for the OpenAPI schema; reads go
     through the selectors, which apply the same RobotFilter."""
 
+    source = ROBOTS
     queryset = Robot.objects.all()
     serializer_class = RobotSerializer
     filterset_class = RobotFilter
-    lookup_field = "name"
-    lookup_value_regex = "[^/]+"
-
-    def list(self, request: Request) -> Response:
-        return Response(RobotSerializer(robot_list(filters=request.query_params), many=True).data)
-
-    # The reference hides its watch streams from OpenAPI; so do we. A list route: it comes before
-    # /robot/{name}, so "watch" is never taken for a robot's name.
-    @extend_schema(exclude=True)
-    @action(detail=False, methods=["get"], url_path="watch", content_negotiation_class=AnyAccept)
-    def watch(self, request: Request) -> HttpResponse:
-        """NDJSON: every robot the filters select, then each change (README "Watch streams")."""
-        return watch_response(request, ROBOTS)
 
     def create(self, request: Request) -> Response:
         spec = body_validated(RobotCreateSerializer, request.data)

@@ -1,15 +1,12 @@
 """Station endpoints: thin methods that validate input, call a selector or service, and serialize."""
 
-from django.http import HttpResponse
 from drf_spectacular.utils import extend_schema, extend_schema_view
-from rest_framework import viewsets
-from rest_framework.decorators import action
 from rest_framework.request import Request
 from rest_framework.response import Response
 
 from access.authentication import request_actor
 from changes.choices import ChangeKind
-from changes.views import AnyAccept, Source, watch_response
+from changes.views import Source, WatchedViewSet
 from kit.api.serializers import body_validated
 from stations.api import schema
 from stations.api.serializers import StationCreateSerializer, StationSerializer, StationSpecSerializer
@@ -30,24 +27,13 @@ STATIONS = Source(kind=ChangeKind.STATION, select=station_list, serializer=Stati
     update=extend_schema(**schema.STATION_UPDATE),
     destroy=extend_schema(**schema.STATION_DELETE),
 )
-class StationViewSet(viewsets.GenericViewSet):
+class StationViewSet(WatchedViewSet):
     """Stations; reads go through the selectors, which apply StationFilter."""
 
+    source = STATIONS
     queryset = Station.objects.all()
     serializer_class = StationSerializer
     filterset_class = StationFilter
-    lookup_field = "name"
-    lookup_value_regex = "[^/]+"
-
-    def list(self, request: Request) -> Response:
-        return Response(StationSerializer(station_list(filters=request.query_params), many=True).data)
-
-    # Hidden from OpenAPI as the other watch streams; a list route, so "watch" is never a station's name.
-    @extend_schema(exclude=True)
-    @action(detail=False, methods=["get"], url_path="watch", content_negotiation_class=AnyAccept)
-    def watch(self, request: Request) -> HttpResponse:
-        """NDJSON: every station the filters select, then each change (README "Watch streams")."""
-        return watch_response(request, STATIONS)
 
     def create(self, request: Request) -> Response:
         spec = body_validated(StationCreateSerializer, request.data)
