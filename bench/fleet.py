@@ -12,7 +12,9 @@ import argparse
 import asyncio
 import json
 import logging
+import math
 import os
+import random
 import re
 import sys
 import time
@@ -35,7 +37,7 @@ from vda5050.models import ConnectionState
 
 logger = logging.getLogger("bench")
 
-RUN, IDLE = "run", "idle"
+RUN, IDLE, BURST = "run", "idle", "burst"  # burst: --unbound missions posted at once, then no more
 STATE_TICK = 0.05  # s; periodic states go out in buckets this far apart, spreading the load
 GRID_SPACING = 2.0  # m between robots' home positions
 WAYPOINT_OFFSETS = ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.0, 0.0))  # m from home, route by route
@@ -86,6 +88,8 @@ class Options:
     probe_postgres: str | None = None  # conninfo for the round-trip probe at the run's start
     probe_redis: str | None = None  # Redis URL for the round-trip probe at the run's start
     process_groups: dict[str, str] = field(default_factory=lambda: dict(measure.DEFAULT_PROCESS_GROUPS))
+    unbound: bool = False  # missions without a robot (issue 41): assignment picks one
+    seed: int = 41  # --unbound: robots' places and missions' destinations on the map
 
     @property
     def manufacturer(self) -> str:
@@ -168,6 +172,7 @@ class Bench:
             Connection(f"{options.name_prefix}-{index}", broker, tls, self._on_message)
             for index in range(connection_count)
         ]
+        self.pool = Pool(options.seed)
         self.loads = [self._new_load(index) for index in range(options.robots)]
         self.by_serial = {load.robot.serial: load for load in self.loads}
         self.created: list[str] = []  # robot names the server accepted
@@ -183,9 +188,16 @@ class Bench:
         self._state_task: asyncio.Task[None] | None = None
         self.error_samples: dict[str, list[str]] = {}  # the first few messages of each kind of error
 
+    @property
+    def map_side(self) -> float:
+        """--unbound: the square map's side (m), as large as the named runs' grid of homes."""
+        return GRID_SPACING * max(1.0, self.options.robots**0.5)
+
     def _new_load(self, index: int) -> Load:
         side = max(1, round(self.options.robots**0.5))
         x, y = GRID_SPACING * (index % side), GRID_SPACING * (index // side)
+        if self.options.unbound:  # spread over the map at seeded places
+            x, y = self.pool.places.uniform(0, self.map_side), self.pool.places.uniform(0, self.map_side)
         name = f"{self.options.name_prefix}-{index}"
         robot = FakeRobot(
             serial=name,
@@ -213,8 +225,11 @@ class Bench:
             await self._wait_online()
             await self._wait_quiet()
             await self.wait_settled()
-            if options.mode == RUN:
+            if options.unbound and options.mode != IDLE:
+                await self._start_unbound()
+            elif options.mode == RUN:
                 await self._start_phase()
+            if options.mode == RUN:
                 self.depth = options.queue
                 for load in self.loads:
                     self._top_up(load)
@@ -222,7 +237,9 @@ class Bench:
             await asyncio.sleep(options.warmup)
             measured = await self._measure()
             self.posting = False
-            failed = await self._failed_missions(started_at) if options.mode == RUN else None
+            failed = await self._failed_missions(started_at) if options.mode != IDLE else None
+            if options.unbound:
+                await self._read_bindings(started_at)
         finally:
             self.posting = False
             await self._shut_down()
@@ -319,6 +336,39 @@ class Bench:
         if missing:
             logger.warning("%d robots got no first order within %.0f s", missing, START_TIMEOUT)
             self.counts["start_timeouts"] = missing
+
+    async def _start_unbound(self) -> None:
+        """--unbound: one mission without a robot per robot, at --start-rate (a burst: as fast as the API
+        takes them), destinations spread over the map; wait until each has reached a robot."""
+        logger.info("start phase: %d unbound missions", len(self.loads))
+        self.posting = True
+        began = self.loop.time()
+        for index in range(len(self.loads)):
+            if self.options.start_rate > 0:
+                await asyncio.sleep(max(0.0, began + index / self.options.start_rate - self.loop.time()))
+            self._post_unbound(first=True)
+        await self._drain_posts()
+        deadline = self.loop.time() + START_TIMEOUT
+        while len(self.pool.first_orders) < len(self.pool.started) and self.loop.time() < deadline:
+            await asyncio.sleep(0.05)
+        missing = len(self.pool.started) - len(self.pool.first_orders)
+        if missing:
+            logger.warning("%d unbound missions reached no robot within %.0f s", missing, START_TIMEOUT)
+            self.counts["start_timeouts"] = missing
+        self.posting = self.options.mode == RUN
+
+    async def _read_bindings(self, since: datetime) -> None:
+        """When the server bound each start-phase mission (its status.assignment's first bound_at)."""
+        try:
+            missions = await self.api.missions(started_after=since.isoformat())
+        except (ApiError, OSError) as exc:
+            logger.warning("cannot list missions: %s", exc)
+            return
+        for mission in missions:
+            bindings = mission.get("status", {}).get("assignment") or []
+            if mission.get("name") in self.pool.started and bindings:
+                bound_at = datetime.fromisoformat(bindings[0]["bound_at"].replace("Z", "+00:00"))
+                self.pool.bound_at[mission["name"]] = bound_at.timestamp()
 
     async def _measure(self) -> dict[str, Any]:
         """The window, cut into slices: CPU, memory, step latency and orders per slice, and over all."""
@@ -425,6 +475,10 @@ class Bench:
             load.start_order_at = now
             self._start_measured(load)
         mission = _mission_of(order["orderId"])
+        if mission in self.pool.destinations and mission not in load.progress:  # bound to this robot
+            self.pool.first_orders.setdefault(mission, (now, load))
+            load.missions.append(mission)
+            load.progress[mission] = 0
         if load.current is not None and load.current != mission:
             # The server runs one mission at a time: it has ended the current one (failed, canceled).
             self._forget(load, load.current)
@@ -471,6 +525,10 @@ class Bench:
     # --- missions --------------------------------------------------------------------------------------
 
     def _top_up(self, load: Load) -> None:
+        if self.options.unbound:  # the pool, not the robot, holds the work: as many missions as robots x Q
+            while self.posting and self.pool.outstanding < len(self.loads) * self.depth:
+                self._post_unbound()
+            return
         while self.posting and len(load.missions) < self.depth:
             self._post(load)
 
@@ -486,6 +544,33 @@ class Bench:
         task = self.loop.create_task(self._send_mission(load, name, body, measure_start))
         self._posts.add(task)
         task.add_done_callback(self._posts.discard)
+
+    def _post_unbound(self, first: bool = False) -> None:
+        """A mission without a robot to a seeded place on the map; `first`: of the start phase (measured)."""
+        pool = self.pool
+        name = f"{self.options.name_prefix}-u{pool.posted}"
+        x, y = pool.places.uniform(0, self.map_side), pool.places.uniform(0, self.map_side)
+        pool.posted += 1
+        pool.outstanding += 1
+        pool.destinations[name] = (x, y)
+        self.counts["missions_posted"] += 1
+        if first:
+            pool.started.add(name)
+        task = self.loop.create_task(self._send_unbound(name, mission_body(name, None, self.options, x, y)))
+        self._posts.add(task)
+        task.add_done_callback(self._posts.discard)
+
+    async def _send_unbound(self, name: str, body: dict[str, Any]) -> None:
+        try:
+            sent_at = await self.api.post_mission(body)
+        except (ApiError, OSError) as exc:
+            self._error("post_errors", f"POST /mission {name}: {exc}")
+            self.pool.outstanding -= 1
+            self.pool.started.discard(name)
+            self.loop.call_later(REPOST_DELAY, self._top_up, self.loads[0])
+            return
+        # the POST's send time on the wall clock, to compare with the server's bound_at
+        self.pool.sent_at[name] = (sent_at, time.time() - (time.monotonic() - sent_at))
 
     async def _send_mission(self, load: Load, name: str, body: dict[str, Any], measure_start: bool) -> None:
         try:
@@ -506,10 +591,10 @@ class Bench:
             self.start_latencies.append(load.start_order_at - load.start_sent_at)
             load.starting = False
 
-    @staticmethod
-    def _forget(load: Load, mission: str) -> None:
+    def _forget(self, load: Load, mission: str) -> None:
         """The mission is over (or was never created): no longer outstanding."""
         if mission in load.progress:
+            self.pool.outstanding -= mission in self.pool.destinations
             del load.progress[mission]
             load.missions.remove(mission)
         if load.current == mission:
@@ -616,19 +701,84 @@ class Bench:
                 measured["processes"], window.orders_finished, calibration["cpu_speed_ms"]
             ),
             "generator_tick_lag_ms": {"p99": lags["p99"], "max": lags["max"]},
+            "assignment": self.pool.figures() if options.unbound else None,
             "series": measured["series"],
             "drift": measure.drift(measured["series"]),
         }
 
 
-def mission_body(name: str, robot: str, options: Options, x: float, y: float) -> dict[str, Any]:
-    """K route nodes of one waypoint each, hopping between points next to the robot's home."""
+class Pool:
+    """--unbound: the missions posted without a robot, where they go and when they reached which robot."""
+
+    def __init__(self, seed: int = 41) -> None:
+        self.places = random.Random(seed)  # robots' places, then missions' destinations
+        self.posted = 0
+        self.outstanding = 0  # posted, not finished
+        self.destinations: dict[str, tuple[float, float]] = {}
+        self.started: set[str] = set()  # the start phase's (or burst's) missions: the measured ones
+        self.sent_at: dict[str, tuple[float, float]] = {}  # POST sent: monotonic, wall clock
+        self.first_orders: dict[str, tuple[float, Load]] = {}  # first order received (monotonic), by whom
+        self.bound_at: dict[str, float] = {}  # the server's binding time (wall clock)
+
+    def figures(self) -> dict[str, Any]:
+        """Bind latency (POST sent -> the server's bound_at), POST -> first order, the last POST -> the last
+        binding, the first orders' rate, and the start phase's total distance against the optimum."""
+        started = sorted(self.started & self.sent_at.keys())
+        bound = [name for name in started if name in self.bound_at]
+        reached = [name for name in started if name in self.first_orders]
+        last_post = max((self.sent_at[name][1] for name in started), default=0.0)
+        last_binding = max((self.bound_at[name] for name in bound), default=None)
+        first_times = sorted(self.first_orders[name][0] for name in reached)
+        span = first_times[-1] - first_times[0] if len(first_times) > 1 else 0.0
+        return {
+            "missions": len(started),
+            "bound": len(bound),
+            "reached_a_robot": len(reached),
+            "bind_latency_ms": measure.latency_summary(
+                [self.bound_at[name] - self.sent_at[name][1] for name in bound]
+            ),
+            "first_order_latency_ms": measure.latency_summary(
+                [self.first_orders[name][0] - self.sent_at[name][0] for name in reached]
+            ),
+            "last_post_to_last_binding_ms": None
+            if last_binding is None
+            else round(1000 * (last_binding - last_post), 1),
+            "first_orders_per_second": round((len(first_times) - 1) / span, 1) if span > 0 else None,
+            **self._distances(reached),
+        }
+
+    def _distances(self, reached: list[str]) -> dict[str, Any]:
+        """Robot (its place: idle robots stay home) -> first waypoint, summed, against the optimum
+        (linear_sum_assignment on the same robots and missions)."""
+        import numpy as np
+        from scipy.optimize import linear_sum_assignment
+
+        if not reached:
+            return {"total_distance_m": None, "optimal_distance_m": None, "over_optimum_percent": None}
+        robots = {id(load): (load.x, load.y) for load in (self.first_orders[n][1] for n in reached)}
+        total = sum(math.dist(robots[id(self.first_orders[n][1])], self.destinations[n]) for n in reached)
+        places = np.array(list(robots.values()))
+        goals = np.array([self.destinations[n] for n in reached])
+        cost = np.hypot(places[:, None, 0] - goals[None, :, 0], places[:, None, 1] - goals[None, :, 1])
+        rows, columns = linear_sum_assignment(cost)
+        optimum = float(cost[rows, columns].sum())
+        return {
+            "total_distance_m": round(total, 1),
+            "optimal_distance_m": round(optimum, 1),
+            "over_optimum_percent": round(100 * (total - optimum) / optimum, 2) if optimum else 0.0,
+        }
+
+
+def mission_body(name: str, robot: str | None, options: Options, x: float, y: float) -> dict[str, Any]:
+    """K route nodes of one waypoint each, hopping between points next to the robot's home (or, robot None:
+    a mission without a robot, next to its destination (x, y))."""
     routes = []
     for index in range(options.nodes):
         dx, dy = WAYPOINT_OFFSETS[index % len(WAYPOINT_OFFSETS)]
         waypoint = {"x": x + dx, "y": y + dy, "theta": 0.0, "map_id": "map"}
         routes.append({"name": f"route{index}", "parent": "root", "route": {"waypoints": [waypoint]}})
-    return {"name": name, "robot": robot, "mission_tree": routes, "timeout": options.mission_timeout}
+    body = {"name": name, "robot": robot, "mission_tree": routes, "timeout": options.mission_timeout}
+    return body if robot is not None else {key: value for key, value in body.items() if key != "robot"}
 
 
 def _mission_of(order_id: str) -> str:
@@ -652,7 +802,18 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m bench.fleet",
         description="Load Mission Dispatch with fast fake VDA 5050 robots and measure it (bench/README.md).",
     )
-    parser.add_argument("--mode", choices=(RUN, IDLE), default=RUN, help="run: missions; idle: states only")
+    parser.add_argument(
+        "--mode",
+        choices=(RUN, IDLE, BURST),
+        default=RUN,
+        help="run: missions; idle: states only; burst (--unbound): one mission per robot at once, no more",
+    )
+    parser.add_argument(
+        "--unbound",
+        action="store_true",
+        help="missions without a robot (assignment picks one), robots and destinations spread over one map",
+    )
+    parser.add_argument("--seed", type=int, default=defaults.seed, help="--unbound: places on the map")
     parser.add_argument("--base-url", default=defaults.base_url, help="the server's REST API")
     parser.add_argument(
         "--api-token",
@@ -755,6 +916,8 @@ def options_from(args: argparse.Namespace, robots: int, sweep: bool = False) -> 
     run_id = args.run_id or uuid.uuid4().hex[:6]
     if args.run_id and sweep:
         run_id = f"{args.run_id}-{robots}"
+    if args.mode == BURST and not args.unbound:
+        raise SystemExit("--mode burst needs --unbound")
     return Options(**values, robots=robots, run_id=run_id, process_groups=groups)
 
 

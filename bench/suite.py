@@ -113,6 +113,21 @@ SUITES["n2000"] = {
 }
 # Saturation at N=100 alone, for A/B pairs of a change to the CPU per order (bench/README.md).
 SUITES["saturation"] = {"saturation-n100": SUITES["short"]["saturation-n100"]}
+# Missions without a robot (issue 41; bench/README.md "Assignment"): a burst of one mission per idle robot,
+# and the realistic fleet at N=1000 with its missions unbound and, to compare, the same run named.
+UNBOUND_N1000 = ["--unbound", "--nodes", "1", "--robots", "1000"]
+SUITES["assignment"] = {
+    "burst-n1000": [*UNBOUND_N1000, "--mode", "burst", "--duration", "10", "--warmup", "5"],
+    "unbound-n1000": [*UNBOUND_N1000, *REALISTIC_N1000[4:], "--duration", "60", "--warmup", "20"],
+    "named-n1000": SUITES["short"]["realistic-n1000"],
+}
+# The tests' (tests/bench/test_unbound.py): a few seconds of five robots and their missions without a robot.
+SUITES["tiny-unbound"] = {
+    "unbound-n5": [
+        *["--unbound", "--nodes", "1", "--robots", "5", "--delay", "0.2", "--duration", "3", "--warmup", "1"],
+        *["--sample-every", "3", "--settle-cores", "2"],
+    ]
+}
 # The saturation runs alone, to compare layouts (--bridges, --workers).
 SUITES["scale"] = {label: SUITES["full"][label] for label in ("saturation-n100", "saturation-n500")}
 
