@@ -341,7 +341,7 @@ class Bench:
         """--unbound: one mission without a robot per robot, at --start-rate (a burst: as fast as the API
         takes them), destinations spread over the map; wait until each has reached a robot."""
         logger.info("start phase: %d unbound missions", len(self.loads))
-        self.posting = True
+        self.posting = self.options.mode == RUN  # a burst is the start phase's missions alone
         began = self.loop.time()
         for index in range(len(self.loads)):
             if self.options.start_rate > 0:
@@ -349,13 +349,12 @@ class Bench:
             self._post_unbound(first=True)
         await self._drain_posts()
         deadline = self.loop.time() + START_TIMEOUT
-        while len(self.pool.first_orders) < len(self.pool.started) and self.loop.time() < deadline:
+        while self.pool.started - self.pool.first_orders.keys() and self.loop.time() < deadline:
             await asyncio.sleep(0.05)
-        missing = len(self.pool.started) - len(self.pool.first_orders)
+        missing = len(self.pool.started - self.pool.first_orders.keys())
         if missing:
             logger.warning("%d unbound missions reached no robot within %.0f s", missing, START_TIMEOUT)
             self.counts["start_timeouts"] = missing
-        self.posting = self.options.mode == RUN
 
     async def _read_bindings(self, since: datetime) -> None:
         """When the server bound each start-phase mission (its status.assignment's first bound_at)."""
