@@ -18,7 +18,7 @@ from dispatch import engine, faults
 from dispatch.held import FINAL, arrived_after_order
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.sent import SentOrder, build_order, order_update_for, sent_order, stored
-from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
+from dispatch.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
 from vda5050 import compat, maps, orders
 from vda5050 import state as vda_state
 from vda5050.codec import ACTIONS_KEY, LEGACY_INSTANT_ACTIONS_KEY
@@ -66,7 +66,7 @@ def step(
         result.mission = mission
         if mission.state == MissionState.PENDING:
             _try_start(result, robot, state, mission, now)
-        if mission.state == MissionState.RUNNING:
+        if mission.state == MissionState.RUNNING and not _release_unaccepted(result, robot, state, mission):
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
     _send_instant_actions(result, robot, state, now, settings)
     return result
@@ -239,6 +239,53 @@ def _try_start(
         engine.ROOT: {"state": MissionState.RUNNING, "error_msg": None},
     }
     result.robot_state = RobotState.ON_TASK
+
+
+def _release_unaccepted(
+    result: StepResult, robot: RobotView, state: State | None, mission: MissionRecord
+) -> bool:
+    """A mission assignment bound to the robot, started but not yet taken up (its first order never
+    accepted, no progress, no leaf ended), whose robot became unfit (`_why_unfit`) goes back to the pool
+    as if it had never started: PENDING, its tree's states new, no order. Its order is canceled on the robot
+    (at once if online, else when it comes back: the robot must never run it later); the leaf's attempt
+    count stays, so the next robot's order has an orderId of its own whatever the first one holds."""
+    unfit = _why_unfit(robot, state)
+    if unfit is None or not mission.assignment or not _not_taken_up(mission):
+        return False
+    try:
+        tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
+    except engine.TreeError:
+        return False  # the step fails it (`_advance`)
+    if robot.lifecycle != Lifecycle.ALIVE:
+        result.delete_robot = True  # as when it ends a running mission (`_ended_by_time_or_owner`)
+    elif mission.order is not None:
+        _cancel_of_order(result, mission)
+    mission.state = MissionState.PENDING
+    mission.start_timestamp = None
+    mission.node_status = engine.initial_node_status(tree)
+    mission.current_node = 0
+    mission.order = None
+    mission.order_sent_at = None
+    mission.order_accepted = False
+    mission.progress = mission.progress_seen_at = None
+    mission.waiting_reason = unfit
+    if result.robot_state == RobotState.ON_TASK:
+        result.robot_state = RobotState.IDLE
+    result.release = unfit
+    return True
+
+
+def _not_taken_up(mission: MissionRecord) -> bool:
+    """The robot has done nothing of the running mission yet: at most its first order sent, never
+    accepted, no progress seen, no node of the tree ended, and no cancel or end asked for."""
+    return (
+        not mission.order_accepted
+        and mission.progress is None
+        and sum(mission.attempts.values()) <= 1
+        and not mission.needs_canceled
+        and mission.lifecycle == Lifecycle.ALIVE
+        and not any(status["state"] in DONE_STATES for status in mission.node_status.values())
+    )
 
 
 def _why_not_start(result: StepResult, robot: RobotView, state: State | None) -> str | None:

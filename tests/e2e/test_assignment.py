@@ -2,6 +2,7 @@
 simulated robots. A mission posted without a robot is bound by assignment to the best free capable robot
 and runs there; one nobody can do waits with its reason until a robot qualifies."""
 
+import signal
 from typing import Any
 
 import pytest
@@ -29,8 +30,10 @@ def robots_at(api, simulator, unique, *places: tuple[str, float], **spec: Any) -
         create_robot(api, name, **spec)
     for name, (_, x) in zip(names, places, strict=True):
         wait_for(
-            lambda name=name, x=x: get(api, "robot", name)["status"]["online"]
-            and get(api, "robot", name)["status"]["pose"]["x"] == x,
+            lambda name=name, x=x: (
+                get(api, "robot", name)["status"]["online"]
+                and get(api, "robot", name)["status"]["pose"]["x"] == x
+            ),
             message=f"robot {name} online at x={x}",
         )
     return names
@@ -53,8 +56,8 @@ def test_the_nearest_of_three_robots_takes_the_mission(api, simulator, unique):
 
 
 def test_labels_beat_distance(api, simulator, unique):
-    near, = robots_at(api, simulator, unique, ("near", 0))
-    far, = robots_at(api, simulator, unique, ("far", 30), labels=["forklift"])
+    (near,) = robots_at(api, simulator, unique, ("near", 0))
+    (far,) = robots_at(api, simulator, unique, ("far", 30), labels=["forklift"])
     mission = unique("lift")
     post_unbound(api, mission, [route("go", (1, 0))], robot_selector={"labels": ["forklift"]})
 
@@ -64,7 +67,7 @@ def test_labels_beat_distance(api, simulator, unique):
 
 
 def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, simulator, unique):
-    robot, = robots_at(api, simulator, unique, ("only", 0))
+    (robot,) = robots_at(api, simulator, unique, ("only", 0))
     busy = unique("busy")
     post_unbound(api, busy, [action("work", time=5, should_fail=0)])
     assert bound_robot(api, busy) == robot
@@ -85,7 +88,7 @@ def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, s
 
 
 def test_a_mission_nobody_can_do_waits_then_runs_once_a_put_gives_a_robot_the_label(api, simulator, unique):
-    robot, = robots_at(api, simulator, unique, ("plain", 0))
+    (robot,) = robots_at(api, simulator, unique, ("plain", 0))
     mission = unique("cold")
     post_unbound(api, mission, [route("go", (1, 0))], robot_selector={"labels": ["cold"]})
     waiting = wait_mission_where(api, mission, lambda status: status["waiting_reason"] is not None)
@@ -112,3 +115,34 @@ def test_a_mission_waits_while_its_only_capable_robot_is_offline_and_runs_once_i
 
     assert bound_robot(api, mission) == robot
     assert wait_mission(api, mission)["status"]["state"] == "COMPLETED"
+
+
+def test_a_robot_that_goes_offline_before_taking_its_first_order_gives_the_mission_to_another(
+    api, simulator, unique
+):
+    """The nearest robot is bound and the mission starts, but its simulator froze (SIGSTOP): the order
+    is never accepted, the robot falls offline (heartbeat), and the mission runs on the other robot."""
+    near, far = unique("frozen"), unique("far")
+    frozen = simulator(f"{near},0,0")
+    simulator(f"{far},20,0")
+    create_robot(api, near, heartbeat_timeout=1)
+    create_robot(api, far)
+    for name, x in ((near, 0), (far, 20)):
+        wait_for(
+            lambda name=name, x=x: (
+                get(api, "robot", name)["status"]["online"]
+                and get(api, "robot", name)["status"]["pose"]["x"] == x
+            ),
+            message=f"robot {name} online at x={x}",
+        )
+    mission = unique("handed-on")
+    frozen.process.send(signal.SIGSTOP)
+    try:
+        post_unbound(api, mission, [route("go", (1, 0))])
+        done = wait_mission(api, mission)
+    finally:
+        frozen.process.send(signal.SIGCONT)
+
+    assert (done["status"]["state"], done["robot"]) == ("COMPLETED", far), done
+    first, second = done["status"]["assignment"]
+    assert (first["robot"], first["reason"], second["robot"]) == (near, "Robot is offline", far)
