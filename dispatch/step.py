@@ -16,12 +16,21 @@ from datetime import datetime, timedelta
 
 from dispatch import engine, faults
 from dispatch.held import FINAL, arrived_after_order
+from dispatch.instant import (
+    cancel_of_order,
+    describe,
+    order_cancel,
+    pending_action,
+    send_instant_actions,
+    switch_to_legacy_key,
+    track_charging,
+    track_instant_actions,
+)
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.sent import SentOrder, build_order, order_update_for, sent_order, stored
 from dispatch.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
 from vda5050 import compat, maps, orders
 from vda5050 import state as vda_state
-from vda5050.codec import ACTIONS_KEY, LEGACY_INSTANT_ACTIONS_KEY
 from vda5050.models import (
     ActionStatus,
     ActionType,
@@ -58,9 +67,9 @@ def step(
         actions=[replace(a) for a in actions],
         switch_teleop=robot.switch_teleop,
     )
-    _track_instant_actions(result, state, state_arrived_at)
-    _switch_to_legacy_key(result, robot, state)
-    _track_charging(result, state)
+    track_instant_actions(result, state, state_arrived_at)
+    switch_to_legacy_key(result, robot, state)
+    track_charging(result, state)
     if mission is not None:
         mission = replace(mission)
         result.mission = mission
@@ -68,136 +77,8 @@ def step(
             _try_start(result, robot, state, mission, now)
         if mission.state == MissionState.RUNNING and not _release_unaccepted(result, robot, state, mission):
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
-    _send_instant_actions(result, robot, state, now, settings)
+    send_instant_actions(result, robot, state, now, settings)
     return result
-
-
-# --- instant actions and robot state -----------------------------------------------------------------
-
-
-def _track_instant_actions(
-    result: StepResult, state: State | None, state_arrived_at: datetime | None
-) -> None:
-    """The robot's reports of our instant actions. One it reported started, unfinished, that a state holding
-    no order (a fresh process) and sent after the action reached it no longer names at all was forgotten:
-    the robot restarted, and the action goes out again. (A robot may drop action states when it takes a new
-    order: with an order held, a missing state proves nothing.)"""
-    if state is None:
-        return
-    for action in result.actions:
-        status = vda_state.action_status(state, action.action_id)
-        if (
-            status is None
-            and action.status is not None
-            and not state.order_id
-            and action.sent_at is not None
-            and arrived_after_order(state_arrived_at, action.sent_at)
-        ):
-            action.status = None
-            action.sent_at = None  # due now (`_send_instant_actions`)
-            continue
-        if status is None and action.action_type == ActionType.CANCEL_ORDER and action.sent_at is not None:
-            refusal = compat.cancel_refusal(state, action.action_id)
-            if refusal is not None:
-                status = ActionStatus.FAILED
-                result.rules_applied.append((compat.Rule.CANCEL_REFUSED_BY_ERROR_ONLY, _describe([refusal])))
-        if status is None or status.value == action.status:
-            continue
-        action.status = status.value
-        if status == ActionStatus.FINISHED and action.action_type == ActionType.START_TELEOP:
-            result.robot_state = RobotState.TELEOP
-        elif status == ActionStatus.FINISHED and action.action_type == ActionType.STOP_TELEOP:
-            result.robot_state = RobotState.ON_TASK if _has_running_mission(result) else RobotState.IDLE
-
-
-def _switch_to_legacy_key(result: StepResult, robot: RobotView, state: State | None) -> None:
-    """Compatibility rule LEGACY_INSTANT_ACTIONS_KEY: a robot that rejected our `actions` gets its
-    unacknowledged instant actions again at once, under the 1.1 key, unless an operator chose the key."""
-    if state is None or robot.instant_actions_key != ACTIONS_KEY or robot.instant_actions_key_by_operator:
-        return
-    waiting = [a for a in result.actions if a.status is None and a.sent_at is not None]
-    rejection = compat.actions_key_rejection(state) if waiting else None
-    if rejection is None:
-        return
-    result.instant_actions_key = LEGACY_INSTANT_ACTIONS_KEY
-    result.rules_applied.append((compat.Rule.LEGACY_INSTANT_ACTIONS_KEY, _describe([rejection])))
-    for action in waiting:
-        action.sent_at = None  # due now (`_send_instant_actions`)
-
-
-def _track_charging(result: StepResult, state: State | None) -> None:
-    if state is None:
-        return
-    charging = state.battery_state.charging
-    if charging and result.robot_state == RobotState.IDLE:
-        result.robot_state = RobotState.CHARGING
-    elif not charging and result.robot_state == RobotState.CHARGING:
-        result.robot_state = RobotState.IDLE
-
-
-def _send_instant_actions(
-    result: StepResult, robot: RobotView, state: State | None, now: datetime, settings: DispatchSettings
-) -> None:
-    """Send new instant actions, re-send unacknowledged ones after a timeout; never on every state, and
-    not while the robot is offline or its operating mode leaves the master out of control (in 3.0's
-    INTERVENED only cancelOrder goes out)."""
-    if not robot.online:
-        return
-    due = [
-        action
-        for action in result.actions
-        if action.status is None
-        and (action.sent_at is None or now - action.sent_at >= settings.instant_action_resend)
-        and (state is None or vda_state.may_receive_instant_action(state, action.action_type))
-    ]
-    if not due:
-        return
-    for action in due:
-        action.sent_at = now
-        action.send_count += 1
-    content = orders.instant_actions(
-        orders.instant_action(a.action_type, a.action_id, a.parameters) for a in due
-    )
-    result.messages.append(Outgoing(content))
-
-
-def _has_running_mission(result: StepResult) -> bool:
-    return result.mission is not None and result.mission.state == MissionState.RUNNING
-
-
-def _pending_action(result: StepResult, action_type: str) -> ActionRecord | None:
-    """An instant action of this type the robot has not yet reported FINISHED or FAILED."""
-    for action in result.actions:
-        if action.action_type == action_type and action.status not in FINAL:
-            return action
-    return None
-
-
-def _order_cancel(result: StepResult, mission: MissionRecord) -> ActionRecord | None:
-    """The cancelOrder for the mission's current order, if one was requested and is still tracked."""
-    assert mission.order is not None
-    prefix = f"{mission.order['orderId']}-cancel"
-    for action in result.actions:
-        if action.action_type == ActionType.CANCEL_ORDER and action.action_id.startswith(prefix):
-            return action
-    return None
-
-
-def _cancel_of_order(result: StepResult, mission: MissionRecord) -> ActionRecord:
-    """The cancelOrder for the mission's current order, requested now if it was not yet."""
-    action = _order_cancel(result, mission)
-    if action is not None:
-        return action
-    assert mission.order is not None
-    action = ActionRecord(
-        action_id=orders.new_action_id(f"{mission.order['orderId']}-cancel"),
-        action_type=ActionType.CANCEL_ORDER,
-        mission=mission.name,
-        status=None,
-        sent_at=None,
-    )
-    result.actions.append(action)
-    return action
 
 
 # --- starting a queued mission -------------------------------------------------------------------------
@@ -259,7 +140,7 @@ def _release_unaccepted(
     if robot.lifecycle != Lifecycle.ALIVE:
         result.delete_robot = True  # as when it ends a running mission (`_ended_by_time_or_owner`)
     elif mission.order is not None:
-        _cancel_of_order(result, mission)
+        cancel_of_order(result, mission)
     mission.state = MissionState.PENDING
     mission.start_timestamp = None
     mission.node_status = engine.initial_node_status(tree)
@@ -295,7 +176,7 @@ def _why_not_start(result: StepResult, robot: RobotView, state: State | None) ->
     assert state is not None  # a robot without a state is offline
     if result.robot_state == RobotState.TELEOP:
         return "Robot is in teleop"
-    if _pending_action(result, ActionType.CANCEL_ORDER) is not None:
+    if pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return "Waiting for the robot to cancel its previous order"
     if not vda_state.may_receive_orders(state):
         return f"Robot is in {state.operating_mode.value} mode"
@@ -319,7 +200,7 @@ def _why_unfit(robot: RobotView, state: State | None) -> str | None:
     # the robot itself cannot work until someone fixes it.
     fatal = [error for error in vda_state.fatal_errors(state) if not error.error_references]
     if fatal:
-        return f"Robot reports a FATAL error: {_describe(fatal)}"
+        return f"Robot reports a FATAL error: {describe(fatal)}"
     return None
 
 
@@ -395,7 +276,7 @@ def _ended_by_time_or_owner(
     else:
         return False
     if _order_active(state, mission) and not result.delete_robot:
-        _cancel_of_order(result, mission)
+        cancel_of_order(result, mission)
     _finish(result, mission, tree, MissionState.FAILED, now, reason=reason, category=category)
     return True
 
@@ -443,7 +324,7 @@ def _follow_order(
         rejection = vda_state.order_rejection(state, order_id, sent.message.order_update_id)
         if rejection is not None:
             result.rejected = True
-            _leaf_failed(mission, leaf, _describe([rejection]))
+            _leaf_failed(mission, leaf, describe([rejection]))
             return
         if sent.ahead is not None and vda_state.order_rejection(state, order_id, sent.ahead.order_update_id):
             result.rejected = True
@@ -465,9 +346,9 @@ def _follow_order(
             return
     failures = _fatal_errors_for(state, sent.stored)
     if failures:
-        _leaf_failed(mission, leaf, _describe(failures))
+        _leaf_failed(mission, leaf, describe(failures))
         if not vda_state.is_idle(state):
-            _cancel_of_order(result, mission)  # a robot that keeps a failed order must not block the next
+            cancel_of_order(result, mission)  # a robot that keeps a failed order must not block the next
         return
     if leaf.kind == NodeKind.ACTION:
         _follow_action(result, state, mission, leaf, sent.message)
@@ -476,7 +357,7 @@ def _follow_order(
     if (
         mission.node_status[leaf.name]["state"] == MissionState.RUNNING
         and not mission.needs_canceled
-        and _pending_action(result, ActionType.CANCEL_ORDER) is None
+        and pending_action(result, ActionType.CANCEL_ORDER) is None
         and faults.watch_progress(robot, state, mission, now, settings.order_stall.total_seconds())
     ):
         _end_stalled(result, state, mission, now, settings)
@@ -489,7 +370,7 @@ def _end_stalled(
     anew (`_take_over`). A robot that stalled on an order update (a route sent ahead) gets the compatibility
     rule ORDER_UPDATE_NOT_EXECUTED: it is sent no routes ahead from then on."""
     faults.end_stalled(mission, now)
-    _cancel_of_order(result, mission)
+    cancel_of_order(result, mission)
     if state.order_update_id > 0:
         seconds = settings.order_stall.total_seconds()
         why = faults.stalled_reason(state.order_id, state.order_update_id, seconds)
@@ -512,7 +393,7 @@ def _take_over(
     waypoints the robot had not reached, from where it stands, once it can take one. The update sent ahead
     is dropped: the next leaf gets an order of its own."""
     if faults.order_ended(mission, sent):
-        cancel = _order_cancel(result, mission)
+        cancel = order_cancel(result, mission)
         seconds = settings.order_stall.total_seconds()
         update_id = mission.progress["orderUpdateId"]
         if cancel is not None and cancel.status not in FINAL:
@@ -534,7 +415,7 @@ def _take_over(
         not robot.online
         or not vda_state.is_idle(state)
         or not vda_state.may_receive_orders(state)
-        or _pending_action(result, ActionType.CANCEL_ORDER) is not None
+        or pending_action(result, ActionType.CANCEL_ORDER) is not None
     ):
         return  # the rest waits until the robot can take it
     waypoints = faults.remaining_waypoints(sent.message, mission.progress)
@@ -601,7 +482,7 @@ def _resend_due(
             return False
         if not arrived_after_order(state_arrived_at, mission.order_sent_at):
             return False
-    if mission.needs_canceled or _pending_action(result, ActionType.CANCEL_ORDER) is not None:
+    if mission.needs_canceled or pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return False
     return vda_state.may_receive_orders(state) and not _route_update_pending(tree, mission, leaf, settings)
 
@@ -617,7 +498,7 @@ def _follow_action(
             result.robot_state = RobotState.ON_TASK
     elif status == ActionStatus.FAILED:
         errors = vda_state.errors_referencing(state, action_ids=[action.action_id])
-        _leaf_failed(mission, leaf, _describe(errors) if errors else ACTION_FAILURE)
+        _leaf_failed(mission, leaf, describe(errors) if errors else ACTION_FAILURE)
         if action.action_type == PAUSE_ORDER and result.robot_state == RobotState.TELEOP:
             result.robot_state = RobotState.ON_TASK
     elif action.action_type == PAUSE_ORDER and status is not None:
@@ -684,10 +565,6 @@ def _element_ids(order: OrderContent) -> dict[str, list[str]]:
     }
 
 
-def _describe(errors: list[Error]) -> str:
-    return "\n".join(error.error_description or error.error_type for error in errors)
-
-
 def _leaf_failed(mission: MissionRecord, leaf: engine.Node, message: str) -> None:
     mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.FAILED, message)
     mission.failure_reason = message
@@ -700,7 +577,7 @@ def _cancel(
     if not _order_active(state, mission) or _current_leaf_kind(tree, mission) not in ORDER_KINDS:
         _finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
         return
-    if _cancel_of_order(result, mission).status in FINAL:
+    if cancel_of_order(result, mission).status in FINAL:
         _finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
 
 
@@ -760,7 +637,7 @@ def _tick(
         or not vda_state.may_receive_orders(state)
     ):
         return  # the order waits until the robot can take it
-    if _pending_action(result, ActionType.CANCEL_ORDER) is not None:
+    if pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return
     if leaf.kind == NodeKind.ROUTE:
         # A map disabled or deleted since the mission started, or named by a route update: the leaf waits.
@@ -857,7 +734,7 @@ def _extend(
         or state is None
         or not robot.online
         or not vda_state.may_receive_orders(state)
-        or _pending_action(result, ActionType.CANCEL_ORDER) is not None
+        or pending_action(result, ActionType.CANCEL_ORDER) is not None
     ):
         return
     sent = sent_order(mission.order)
@@ -916,7 +793,7 @@ def _restart_updated_leaf(
     """Stop the stale order; once stopped, the leaf starts over with the new waypoints (a new order).
 
     True once the leaf is PENDING again, ready to start."""
-    if _order_active(state, mission) and _cancel_of_order(result, mission).status not in FINAL:
+    if _order_active(state, mission) and cancel_of_order(result, mission).status not in FINAL:
         return False
     mission.node_status = engine.set_leaf_state(mission.node_status, leaf.name, MissionState.PENDING)
     mission.order = None

@@ -19,6 +19,7 @@ print(sorted({{m.split(".")[0] for m in sys.modules}} & {{"django", "paho", "red
         "dispatch.vocabulary",
         "dispatch.engine",
         "dispatch.step",
+        "dispatch.instant",
         "dispatch.records",
         "dispatch.held",
         "dispatch.assignment",
