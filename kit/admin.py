@@ -106,3 +106,8 @@ class ServiceAdmin(admin.ModelAdmin):
         except UsageError as error:
             self.message_user(request, error.message, messages.ERROR)
             return HttpResponseRedirect(request.get_full_path())
+
+    def delete_model(self, request: HttpRequest, obj: Any) -> None:
+        """One object's delete goes the way of a bulk delete: through the subclass's `delete_queryset`,
+        which calls the service."""
+        self.delete_queryset(request, [obj])

@@ -17,7 +17,7 @@ from django.utils.safestring import SafeString
 from access.authentication import request_actor
 from dispatch.engine import Node, TreeError, apply_route_updates, parse_tree
 from dispatch.vocabulary import MissionState, NodeKind
-from kit.admin import call_service_for_each, delete_through_service
+from kit.admin import ServiceAdmin, call_service_for_each, delete_through_service
 from missions.models import Mission
 from missions.services import mission_cancel, mission_delete, mission_prioritize
 from robots.models import Robot
@@ -113,7 +113,7 @@ def mission_tree_rows(mission: Mission) -> list[TreeRow]:
 
 
 @admin.register(Mission)
-class MissionAdmin(admin.ModelAdmin):
+class MissionAdmin(ServiceAdmin):
     list_display = (
         "name",
         "robot_or_unbound",
@@ -243,9 +243,6 @@ class MissionAdmin(admin.ModelAdmin):
             lambda mission: mission_prioritize(actor=actor, mission=mission, priority=mission.priority + by),
             "Priority changed",
         )
-
-    def delete_model(self, request: HttpRequest, obj: Mission) -> None:
-        self.delete_queryset(request, [obj])
 
     def delete_queryset(self, request: HttpRequest, queryset: Iterable[Mission]) -> None:
         delete_through_service(

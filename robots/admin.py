@@ -202,9 +202,6 @@ class RobotAdmin(ServiceAdmin):
         elif form.changed_data:
             robot_update_spec(actor=request_actor(request), robot=obj, spec=form.spec)
 
-    def delete_model(self, request: HttpRequest, obj: Robot) -> None:
-        self.delete_queryset(request, [obj])
-
     def delete_queryset(self, request: HttpRequest, queryset: Iterable[Robot]) -> None:
         delete_through_service(
             self,

@@ -80,9 +80,6 @@ class StationAdmin(ServiceAdmin):
         elif form.changed_data:
             station_update_spec(actor=request_actor(request), station=obj, spec=form.spec)
 
-    def delete_model(self, request: HttpRequest, obj: Station) -> None:
-        self.delete_queryset(request, [obj])
-
     def delete_queryset(self, request: HttpRequest, queryset: Iterable[Station]) -> None:
         # A station robots hold is refused (a warning), the others deleted.
         call_service_for_each(

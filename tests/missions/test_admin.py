@@ -194,6 +194,17 @@ def test_delete_removes_a_queued_mission(admin_client: Client):
     assert [level for level, _ in sent_messages(response)] == [messages.SUCCESS]
 
 
+def test_deleting_one_running_mission_goes_through_the_service(admin_client: Client):
+    running = MissionFactory(name="running", running=True)
+
+    admin_client.post(reverse("admin:missions_mission_delete", args=[running.name]), {"post": "yes"})
+
+    # The service keeps it until its robot confirms the cancel; Django's own delete would remove the row.
+    assert list(Mission.objects.values_list("name", "lifecycle", "needs_canceled")) == [
+        ("running", Lifecycle.PENDING_DELETE, True)
+    ]
+
+
 def test_bulk_delete_leaves_a_running_mission_pending_delete(admin_client: Client):
     running = MissionFactory(name="running", running=True)
     done = MissionFactory(name="done", completed=True)
