@@ -34,6 +34,7 @@ __all__ = [
     "ALL_BUSY",
     "ALL_LOW_BATTERY",
     "NONE_ONLINE",
+    "NOT_YET_ASSIGNED",
     "NO_ACTION_TYPES",
     "NO_LABELS",
     "NO_MAP",
@@ -54,6 +55,8 @@ __all__ = [
 # reasons name the first requirement (labels, robot types, action types, maps) that no robot meeting the
 # ones before it meets; the others are about the capable robots' state.
 NO_ROBOTS = "No robot exists"
+# A new mission without a robot, until the first assignment run has looked at it.
+NOT_YET_ASSIGNED = "Waiting for assignment to choose a robot"
 NO_LABELS = "No robot carries labels {labels}"
 NO_ROBOT_TYPE = "No robot of type {robot_types}"
 NO_ACTION_TYPES = "No robot's factsheet lists action types {action_types}"

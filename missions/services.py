@@ -16,7 +16,7 @@ from django.utils import timezone
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
-from dispatch.assignment import assign
+from dispatch.assignment import NOT_YET_ASSIGNED, assign
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
@@ -76,6 +76,7 @@ def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Ma
         timeout=spec.get("timeout", Mission._meta.get_field("timeout").get_default()),
         deadline=spec.get("deadline"),
         node_status=initial_node_status(tree),
+        waiting_reason=NOT_YET_ASSIGNED if robot is None else None,
     )
     update_nodes = spec.get("update_nodes")
     if update_nodes is not None:

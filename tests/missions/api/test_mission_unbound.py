@@ -2,6 +2,7 @@
 
 import pytest
 
+from dispatch.assignment import NOT_YET_ASSIGNED
 from missions.models import Mission
 from tests.factories import MissionFactory
 
@@ -28,6 +29,7 @@ def test_a_mission_without_a_robot_is_unbound_and_pending(api, woken, spec):
     assert (created["robot"], created["priority"], created["robot_selector"]) == (None, 0, None)
     assert created["status"]["state"] == "PENDING"
     assert created["status"]["assignment"] == []
+    assert created["status"]["waiting_reason"] == NOT_YET_ASSIGNED  # says why from the start
     assert Mission.objects.get(name="m1").robot is None
     assert woken == []  # no robot to step: assignment is asked for instead
 
