@@ -4,16 +4,12 @@ Each class has the vocabulary enum's names and values, and labels derived from t
 use these where Django needs choices (model fields, serializers, filters), the vocabulary elsewhere.
 """
 
-from django.db import models
-
 from dispatch import vocabulary
 from dispatch.vocabulary import DONE_STATES
-from robots.choices import Lifecycle
+from kit.choices import Lifecycle, vocabulary_choices
 
 __all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionState", "NodeKind"]
 
-MissionState = models.TextChoices("MissionState", [(m.name, m.value) for m in vocabulary.MissionState])
-FailureCategory = models.TextChoices(
-    "FailureCategory", [(m.name, m.value) for m in vocabulary.FailureCategory]
-)
-NodeKind = models.TextChoices("NodeKind", [(m.name, m.value) for m in vocabulary.NodeKind])
+MissionState = vocabulary_choices(vocabulary.MissionState)
+FailureCategory = vocabulary_choices(vocabulary.FailureCategory)
+NodeKind = vocabulary_choices(vocabulary.NodeKind)
