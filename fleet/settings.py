@@ -343,6 +343,12 @@ DISPATCH_STALL_CHECK_SECONDS = env_float("FLEET_STALL_CHECK_SECONDS", 5.0)
 # unbound mission, a robot freed, created, updated or back online), and the way robots freed otherwise
 # (charged, out of teleop) are found.
 ASSIGNMENT_CHECK_SECONDS = env_float("FLEET_ASSIGNMENT_CHECK_SECONDS", 3.0)
+# A burst of unbound missions is bound together once it pauses this long (or once there are as many missions
+# as free robots), so that the robots are chosen for all of them at once (dispatch.assignment.burst_hold);
+# 0 binds each run's missions at once.
+ASSIGNMENT_QUIET_SECONDS = env_float("FLEET_ASSIGNMENT_QUIET_SECONDS", 0.25)
+# ... but a stream that never pauses is bound at least this often.
+ASSIGNMENT_HOLD_SECONDS = env_float("FLEET_ASSIGNMENT_HOLD_SECONDS", 10.0)
 # Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
 NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
 # The backoff is Celery's (`retry_backoff`), in whole seconds.

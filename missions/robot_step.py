@@ -35,6 +35,7 @@ from missions.rows import (
     mission_db_values,
     mission_row_delete,
 )
+from missions.services import mission_claim
 from missions.tuning import OUTBOX_LIMIT
 from robots import livestate
 from robots.choices import InstantActionsKey, SettingSource
@@ -166,9 +167,13 @@ def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> b
         if end is not StepEnd.QUEUE_RAN_DRY:
             return False
         queue_grew, unbound_wait = queue_cursor.fetchone()
-        if not queue_grew and unbound_wait:
-            request_assignment()  # the robot is free: an unbound mission may be its
-        return queue_grew
+        if queue_grew:
+            return True
+        if unbound_wait:  # the robot is free: an unbound mission may be its
+            if mission_claim(robot=name) is not None:
+                return True  # the next transaction starts it
+            request_assignment()
+        return False
 
 
 @dataclass
@@ -346,7 +351,10 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         ended_a_mission = True
         upcoming = upcoming or _current_missions(name, count=2)
     if view.state != robot_state:
-        Robot.objects.filter(name=name).update(state=view.state, updated_at=timezone.now())
+        changed_at = timezone.now()
+        Robot.objects.filter(name=name).update(
+            state=view.state, state_since=changed_at, updated_at=changed_at
+        )
     return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
 
 
@@ -465,9 +473,7 @@ UPSERT_ACTIONS_SQL = f"""
 """
 
 
-def _store_actions(
-    robot: str, before: list[ActionRecord], after: list[ActionRecord]
-) -> None:
+def _store_actions(robot: str, before: list[ActionRecord], after: list[ActionRecord]) -> None:
     """Insert new instant actions and save the ones whose status or send time changed, in one statement."""
     known = {a.action_id: a for a in before}
     changed = [a for a in after if known.get(a.action_id) != a]

@@ -1,7 +1,8 @@
 """Reads of missions."""
 
+from collections import OrderedDict
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 from typing import Any
 
@@ -25,6 +26,7 @@ from robots import livestate
 from robots.models import InstantAction, Robot
 from vda5050 import maps
 from vda5050.models import MapStatus
+from vda5050.state import MODES_WITHOUT_ORDERS
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -161,17 +163,42 @@ def robots_with_missions() -> list[str]:
     )
 
 
-# --- assignment's reads (`missions.services.missions_assign`) ------------------------------------------
+# --- assignment's reads (`missions.services.missions_assign`, `mission_claim`) ------------------------------
 
+# The unbound queued missions, highest priority first, oldest first among equals; without their trees,
+# which `_unbound_missions` reads only for missions it has not seen since they last changed.
 UNBOUND_MISSIONS_SQL = f"""
-    SELECT name, priority, created_at, robot_selector, mission_tree, update_nodes, waiting_reason
+    SELECT name, updated_at, priority, created_at, robot_selector, waiting_reason
     FROM {Mission._meta.db_table}
     WHERE robot IS NULL AND state = '{MissionState.PENDING}' AND lifecycle = '{Lifecycle.ALIVE}'
-    ORDER BY queue_position
+      AND created_at <= %s
+    ORDER BY priority DESC, queue_position LIMIT %s
 """
-# Every robot, with what makes it free or not: its running mission or a mission assignment bound to it
-# that has not started yet (either: not free), and its own queue's head (`QueueHead`). A robot's rows are
-# found by mission_queue_idx.
+MISSION_ROUTES_SQL = (
+    f"SELECT name, mission_tree, update_nodes FROM {Mission._meta.db_table} WHERE name = ANY(%s)"
+)
+# A robot may take a mission: online, not in teleop nor in an operating mode that takes no orders (VDA 5050's
+# MANUAL, SERVICE, ...), no FATAL error of its own.
+_MAY_WORK_SQL = f"""
+    r.online AND r.lifecycle = '{Lifecycle.ALIVE}'
+    AND r.state <> '{RobotState.TELEOP}' AND NOT r.switch_teleop
+    AND r.operating_mode NOT IN ({", ".join(sorted(f"'{mode.value}'" for mode in MODES_WITHOUT_ORDERS))})
+    AND NOT EXISTS (
+        SELECT 1 FROM jsonb_each(r.errors) AS e(kind, error)
+        WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
+    )
+"""
+# It has a running mission or one assignment bound to it that has not started yet.
+_BUSY_SQL = f"""
+    EXISTS (
+        SELECT 1 FROM {Mission._meta.db_table} m
+        WHERE m.robot = r.name AND (
+            m.state = '{MissionState.RUNNING}' OR m.state = '{MissionState.PENDING}' AND m.assignment <> '[]'
+        )
+    )
+"""
+# Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
+# found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
 CANDIDATE_ROBOTS_SQL = f"""
     SELECT r.name, r.labels, r.agv_class,
         COALESCE(
@@ -179,19 +206,9 @@ CANDIDATE_ROBOTS_SQL = f"""
             r.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
         ),
         r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
-        r.online AND r.lifecycle = '{Lifecycle.ALIVE}',
-        r.state <> '{RobotState.TELEOP}' AND NOT r.switch_teleop AND NOT EXISTS (
-            SELECT 1 FROM jsonb_each(r.errors) AS e(kind, error)
-            WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
-        ),
-        r.battery_level >= r.battery_critical_level, r.maps,
-        EXISTS (
-            SELECT 1 FROM {Mission._meta.db_table} m
-            WHERE m.robot = r.name AND (
-                m.state = '{MissionState.RUNNING}'
-                OR m.state = '{MissionState.PENDING}' AND m.assignment <> '[]'
-            )
-        ),
+        r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
+        r.battery_level >= r.battery_critical_level, r.maps, {_BUSY_SQL},
+        CASE WHEN r.state = '{RobotState.IDLE}' THEN r.state_since END,
         head.priority, head.created_at
     FROM {Robot._meta.db_table} r
     LEFT JOIN LATERAL (
@@ -200,6 +217,10 @@ CANDIDATE_ROBOTS_SQL = f"""
         ORDER BY m.priority DESC, m.queue_position LIMIT 1
     ) AS head ON true
 """
+FREE_ROBOTS_SQL = f"""{CANDIDATE_ROBOTS_SQL}
+    WHERE {_MAY_WORK_SQL} AND r.battery_level >= r.battery_critical_level AND NOT {_BUSY_SQL}
+"""
+CANDIDATE_ROBOT_SQL = f"{CANDIDATE_ROBOTS_SQL} WHERE r.name = %s"
 
 
 def unbound_missions_wait() -> bool:
@@ -213,20 +234,72 @@ class AssignmentInputs:
     waiting_reasons: dict[str, str | None]  # each unbound mission's, as stored
 
 
-def assignment_inputs() -> AssignmentInputs:
-    """The unbound queued missions and every robot, as assignment's records: two queries."""
-    with connection.cursor() as cursor:
-        cursor.execute(UNBOUND_MISSIONS_SQL)
-        mission_rows = cursor.fetchall()
-        if not mission_rows:
+def assignment_inputs(*, free_only: bool) -> AssignmentInputs:
+    """The unbound queued missions and the robots (every one, or only the free ones), as assignment's
+    records; none of either when there is nothing to bind (no mission, or no free robot)."""
+    if free_only:
+        robots = _candidate_robots(FREE_ROBOTS_SQL, [])
+        if not robots:
             return AssignmentInputs([], [], {})
-        cursor.execute(CANDIDATE_ROBOTS_SQL)
-        robot_rows = cursor.fetchall()
-    return AssignmentInputs(
-        missions=[_unbound_mission(*row[:6]) for row in mission_rows],
-        robots=[_candidate_robot(*row) for row in robot_rows],
-        waiting_reasons={row[0]: row[6] for row in mission_rows},
-    )
+        missions, waiting_reasons = _unbound_missions(created_before=timezone.now(), limit=None)
+        return AssignmentInputs(missions, robots, waiting_reasons)
+    missions, waiting_reasons = _unbound_missions(created_before=timezone.now(), limit=None)
+    if not missions:
+        return AssignmentInputs([], [], {})
+    return AssignmentInputs(missions, _candidate_robots(CANDIDATE_ROBOTS_SQL, []), waiting_reasons)
+
+
+def claim_inputs(*, robot: str, created_before: datetime, limit: int) -> AssignmentInputs:
+    """The robot `robot` and the first `limit` unbound missions created before `created_before`, highest
+    priority and oldest first: what a robot that just fell free chooses its next mission from."""
+    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
+    if not robots:
+        return AssignmentInputs([], [], {})
+    missions, waiting_reasons = _unbound_missions(created_before=created_before, limit=limit)
+    return AssignmentInputs(missions, robots, waiting_reasons)
+
+
+def _candidate_robots(sql: str, params: list[Any]) -> list[CandidateRobot]:
+    with connection.cursor() as cursor:
+        cursor.execute(sql, params)
+        return [_candidate_robot(*row) for row in cursor.fetchall()]
+
+
+# The unbound missions read before, as assignment's records, while they do not change (by name: the
+# `updated_at` they were read at and the record), the least recently read dropped first. Parsing their trees
+# was most of a run's CPU.
+_unbound_records: OrderedDict[str, tuple[datetime, UnboundMission]] = OrderedDict()
+UNBOUND_RECORDS_KEPT = 20_000
+
+
+def _unbound_missions(
+    *, created_before: datetime, limit: int | None
+) -> tuple[list[UnboundMission], dict[str, str | None]]:
+    with connection.cursor() as cursor:
+        cursor.execute(UNBOUND_MISSIONS_SQL, [created_before, limit])
+        rows = cursor.fetchall()
+        unseen = [row[0] for row in rows if _unbound_records.get(row[0], (None,))[0] != row[1]]
+        routes = {}
+        if unseen:
+            cursor.execute(MISSION_ROUTES_SQL, [unseen])
+            routes = {name: (tree, update_nodes) for name, tree, update_nodes in cursor.fetchall()}
+    missions = []
+    for name, updated_at, priority, created, selector, _reason in rows:
+        if name in routes:
+            _unbound_records[name] = (
+                updated_at,
+                _unbound_mission(name, priority, created, selector, *routes[name]),
+            )
+        elif name not in _unbound_records:
+            continue  # bound or deleted between the two reads
+        _unbound_records.move_to_end(name)
+        record = _unbound_records[name][1]
+        if (record.priority, record.created) != (priority, created):  # a row's changes all touch updated_at,
+            record = replace(record, priority=priority, created=created)  # but a test's may not
+        missions.append(record)
+    while len(_unbound_records) > UNBOUND_RECORDS_KEPT:
+        _unbound_records.popitem(last=False)
+    return missions, {row[0]: row[5] for row in rows}
 
 
 def _json(value: Any) -> Any:
@@ -282,6 +355,7 @@ def _candidate_robot(
     battery_ok: bool,
     robot_maps: Any,
     busy: bool,
+    idle_since: datetime | None,
     head_priority: int | None,
     head_created: datetime | None,
 ) -> CandidateRobot:
@@ -300,6 +374,6 @@ def _candidate_robot(
             if robot_maps
             else None
         ),
-        idle_since=None,
+        idle_since=idle_since,
         queue_head=None if head_created is None else QueueHead(head_priority, head_created),
     )

@@ -8,15 +8,18 @@ engine only ever cancels RUNNING missions.
 import logging
 from collections.abc import Mapping
 from contextlib import nullcontext
+from dataclasses import dataclass
+from datetime import datetime, timedelta
 from typing import Any
 
+from django.conf import settings
 from django.db import IntegrityError, connection, transaction
 from django.utils import timezone
 
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
-from dispatch.assignment import NOT_YET_ASSIGNED, assign
+from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
@@ -34,7 +37,8 @@ from missions.rows import (
     mission_db_values,
     mission_row_delete,
 )
-from missions.selectors import assignment_inputs
+from missions.selectors import assignment_inputs, claim_inputs
+from missions.tuning import CLAIM_PAGE
 from robots.models import Robot
 
 logger = logging.getLogger(__name__)
@@ -325,8 +329,7 @@ def mission_orders_accepted(*, orders: Mapping[str, tuple[str, int]]) -> None:
 
 # --- assignment: binding unbound missions to free capable robots (issue 41) -----------------------------
 
-# Both lock only rows no one else holds, so that runs never wait for each other (nor deadlock) nor for a
-# step: what they skip waits for the next run, which the run asks for.
+# Both lock only rows no one else holds (`_bind`).
 LOCK_FREE_ROBOTS_SQL = f"""
     SELECT name FROM {Robot._meta.db_table}
     WHERE name = ANY(%s) AND online AND lifecycle = '{Lifecycle.ALIVE}'
@@ -375,43 +378,93 @@ WAITING_REASONS_SQL = f"""
 """
 
 
-def missions_assign() -> dict[str, str]:
-    """Bind the unbound queued missions to free capable robots (`dispatch.assignment.assign`), record why
-    the others wait, and step the robots bound; returns the bindings made (mission -> robot).
+@dataclass(frozen=True)
+class AssignmentRun:
+    bound: dict[str, str]  # the bindings made: mission -> robot
+    hold: float | None = None  # a burst is arriving: run again in this many seconds (`burst_hold`)
 
-    The read takes no locks; the binding, in one transaction, locks the robots and missions it binds
-    (SKIP LOCKED) and binds only a mission still unbound to a robot still free, so that whatever number of
-    runs go at once, a mission is bound once and a robot gets one mission. A binding skipped for a lock
-    or a race is tried again by the next run, asked for at once.
+
+def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
+    """Bind the unbound queued missions to free capable robots (`dispatch.assignment.assign`), record why
+    the others wait (`with_reasons`), and step the robots bound.
+
+    Without `with_reasons` only the free robots are read, and the missions only if one is: a run that a
+    robot freed or a new mission asked for costs little when every robot is busy, which in a busy fleet
+    is most runs (the reasons need every robot; the caller refreshes them now and then). The read takes no
+    locks; the binding (`_bind`) binds only a mission still unbound to a robot still free, so that whatever
+    number of runs go at once, a mission is bound once and a robot gets one mission. A binding skipped for
+    a lock or a race is tried again by the next run, asked for at once.
     """
     now = timezone.now()
     with connection.cursor() as cursor:
         cursor.execute(RELEASE_ORPHANS_SQL, [now, binding_time(now), ROBOT_DELETED])
         cursor.execute(DEADLINE_UNBOUND_SQL, [now, now, DEADLINE_PASSED, now])
-    inputs = assignment_inputs()
+    inputs = assignment_inputs(free_only=not with_reasons)
     if not inputs.missions:
-        return {}
+        return AssignmentRun({})
+    free_robots = sum(robot.online and robot.idle and robot.battery_ok for robot in inputs.robots)
+    hold = burst_hold(
+        [mission.created for mission in inputs.missions],
+        free_robots,
+        now=now,
+        quiet=timedelta(seconds=settings.ASSIGNMENT_QUIET_SECONDS),
+        longest=timedelta(seconds=settings.ASSIGNMENT_HOLD_SECONDS),
+    )
+    if hold is not None:
+        return AssignmentRun({}, hold=hold.total_seconds())
     result = assign(inputs.missions, inputs.robots)
-    with transaction.atomic(), connection.cursor() as cursor:
-        bound: dict[str, str] = {}
-        if result.bindings:
-            cursor.execute(LOCK_FREE_ROBOTS_SQL, [sorted(set(result.bindings.values()))])
-            robots = {name for (name,) in cursor.fetchall()}
-            cursor.execute(LOCK_UNBOUND_SQL, [sorted(result.bindings)])
-            missions = [name for (name,) in cursor.fetchall() if result.bindings[name] in robots]
-            if missions:
-                cursor.execute(
-                    BIND_SQL,
-                    [now, binding_time(now), missions, [result.bindings[name] for name in missions]],
-                )
-                bound = dict(cursor.fetchall())
+    with transaction.atomic():
+        bound = _bind(result.bindings, now)
         changed = {
             name: reason for name, reason in result.waiting.items() if inputs.waiting_reasons[name] != reason
         }
-        if changed:
-            cursor.execute(WAITING_REASONS_SQL, [now, list(changed), list(changed.values())])
-        if bound:
-            request_steps(sorted(set(bound.values())))
+        if changed and with_reasons:
+            with connection.cursor() as cursor:
+                cursor.execute(WAITING_REASONS_SQL, [now, list(changed), list(changed.values())])
         if len(bound) < len(result.bindings):
             request_assignment()
+    return AssignmentRun(bound)
+
+
+def mission_claim(*, robot: str) -> str | None:
+    """The robot, just fallen free, takes its next mission from the unbound ones at once, by assignment's
+    rules for it alone (the oldest of the highest priority it can do, unless its own queue comes first);
+    returns the mission bound, if any.
+
+    In a busy fleet robots fall free one at a time while missions wait: the robot is then the only free
+    one, and binding it in its own step spares a run and a step (issue 41's steady state). Missions younger
+    than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them for a burst, and so is a
+    robot that none of the `CLAIM_PAGE` first missions suits (the run reads them all).
+    """
+    now = timezone.now()
+    inputs = claim_inputs(
+        robot=robot,
+        created_before=now - timedelta(seconds=settings.ASSIGNMENT_QUIET_SECONDS),
+        limit=CLAIM_PAGE,
+    )
+    if not inputs.missions:
+        return None
+    bindings = assign(inputs.missions, inputs.robots).bindings
+    with transaction.atomic():
+        bound = _bind(bindings, now)
+    return next(iter(bound), None)
+
+
+def _bind(bindings: dict[str, str], now: datetime) -> dict[str, str]:
+    """Bind what `bindings` asks (mission -> robot) where the robot and mission are still free and no other
+    transaction holds them (SKIP LOCKED: runs never wait for each other, nor deadlock, nor wait for a step);
+    the robots bound are stepped once this commits. Returns the bindings made."""
+    if not bindings:
+        return {}
+    with connection.cursor() as cursor:
+        cursor.execute(LOCK_FREE_ROBOTS_SQL, [sorted(set(bindings.values()))])
+        robots = {name for (name,) in cursor.fetchall()}
+        cursor.execute(LOCK_UNBOUND_SQL, [sorted(bindings)])
+        missions = [name for (name,) in cursor.fetchall() if bindings[name] in robots]
+        if not missions:
+            return {}
+        cursor.execute(BIND_SQL, [now, binding_time(now), missions, [bindings[name] for name in missions]])
+        bound = dict(cursor.fetchall())
+    if bound:
+        request_steps(sorted(set(bound.values())))
     return bound

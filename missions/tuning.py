@@ -14,3 +14,7 @@ OUTBOX_LIMIT = 16
 
 # A notify call waits at most a day (seconds): longer is no notification.
 MAX_NOTIFY_TIMEOUT = 86_400
+
+# A robot that falls free chooses its next mission among this many unbound ones (highest priority, oldest
+# first: `missions.services.mission_claim`); one that suits none of them waits for the assignment run.
+CLAIM_PAGE = 16

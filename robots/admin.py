@@ -35,6 +35,8 @@ BATTERY_FIELDS = ("battery_critical_level", "battery_recommended_minimum", "batt
 EDITABLE_SPEC_FIELDS = ("labels", *BATTERY_FIELDS, "heartbeat_timeout")
 STATUS_FIELDS = (
     "state",
+    "state_since",
+    "operating_mode",
     "online",
     "battery_level",
     "pose",

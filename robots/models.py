@@ -70,6 +70,12 @@ class Robot(models.Model):
 
     # --- status ---
     state = models.CharField(max_length=20, choices=RobotState.choices, default=RobotState.IDLE)
+    state_since = models.DateTimeField(
+        null=True, blank=True, help_text="When the robot's state last changed (assignment: the longest idle)."
+    )
+    operating_mode = models.CharField(
+        max_length=20, blank=True, default="", help_text="The VDA 5050 operatingMode the robot last reported."
+    )
     online = models.BooleanField(default=False)
     battery_level = models.FloatField(default=0.0)
     pose_x = models.FloatField(default=0.0)

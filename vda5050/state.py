@@ -23,6 +23,8 @@ MODES_WITHOUT_MASTER = frozenset(
 )
 # 3.0: someone intervened on the robot; fleet control may only cancel its order.
 MODE_CANCEL_ONLY = OperatingMode.INTERVENED
+# Modes in which the robot takes no new order.
+MODES_WITHOUT_ORDERS = MODES_WITHOUT_MASTER | {MODE_CANCEL_ONLY}
 # Errors after which the robot cannot go on with its current order (3.0 CRITICAL: it can take new ones).
 ORDER_ENDING_LEVELS = frozenset({ErrorLevel.CRITICAL, ErrorLevel.FATAL})
 
@@ -140,7 +142,7 @@ def is_idle(state: State) -> bool:
 
 
 def may_receive_orders(state: State) -> bool:
-    return state.operating_mode not in MODES_WITHOUT_MASTER and state.operating_mode != MODE_CANCEL_ONLY
+    return state.operating_mode not in MODES_WITHOUT_ORDERS
 
 
 def may_receive_instant_action(state: State, action_type: str) -> bool:

@@ -12,6 +12,7 @@ order of a step's own.
 
 import atexit
 import logging
+import math
 import os
 import threading
 import time
@@ -33,6 +34,8 @@ ASSIGN_TASK = "fleet.assign_missions"  # workers.tasks.assign_missions
 # Exists while an assignment run is queued and has not started: at most one queued at a time. It expires,
 # so that a run lost with a killed worker blocks none after it.
 ASSIGNMENT_MARKER_KEY = f"{livestate.PREFIX}:assignment-queued"
+# Exists for ASSIGNMENT_RUN_INTERVAL_SECONDS after a run started: a run asked for meanwhile waits for it.
+ASSIGNMENT_RAN_KEY = f"{livestate.PREFIX}:assignment-ran"
 
 
 def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
@@ -65,25 +68,46 @@ def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
             raise
 
 
-def queue_assignment() -> None:
-    """Queue an assignment run unless one is queued already (`ASSIGNMENT_MARKER_KEY`)."""
-    [marked] = livestate.round_trip(
-        [("SET", ASSIGNMENT_MARKER_KEY, 1, "NX", "EX", tuning.ASSIGNMENT_MARKER_SECONDS)]
+def queue_assignment(*, countdown: float = 0.0) -> None:
+    """Queue an assignment run unless one is queued already (`ASSIGNMENT_MARKER_KEY`), to start in
+    `countdown` s, and no sooner than `ASSIGNMENT_RUN_INTERVAL_SECONDS` after the last run started."""
+    marked, since_last = livestate.round_trip(
+        [
+            (
+                "SET",
+                ASSIGNMENT_MARKER_KEY,
+                1,
+                "NX",
+                "EX",
+                tuning.ASSIGNMENT_MARKER_SECONDS + math.ceil(countdown),
+            ),
+            ("PTTL", ASSIGNMENT_RAN_KEY),
+        ]
     )
-    if isinstance(marked, Exception):
-        raise marked
+    for reply in (marked, since_last):
+        if isinstance(reply, Exception):
+            raise reply
     if marked is None:
         return
+    countdown = max(countdown, since_last / 1000)  # PTTL: -2 without the key
     try:
-        app.send_task(ASSIGN_TASK, (), queue=settings.STEP_QUEUE, producer=_thread_producer())
+        app.send_task(
+            ASSIGN_TASK,
+            (),
+            queue=settings.STEP_QUEUE,
+            producer=_thread_producer(),
+            countdown=countdown or None,
+        )
     except Exception:
-        assignment_marker_clear()  # a marker without its task would block every later run
+        livestate.round_trip([("DEL", ASSIGNMENT_MARKER_KEY)])  # a marker without its task blocks every run
         raise
 
 
-def assignment_marker_clear() -> None:
-    """Let the next request queue a run: the run that clears it reads the missions afterwards."""
-    livestate.round_trip([("DEL", ASSIGNMENT_MARKER_KEY)])
+def assignment_run_started() -> None:
+    """Let the next request queue a run (the run starting reads the missions afterwards), not to start
+    before `ASSIGNMENT_RUN_INTERVAL_SECONDS` from now."""
+    interval_ms = int(tuning.ASSIGNMENT_RUN_INTERVAL_SECONDS * 1000)
+    livestate.round_trip([("DEL", ASSIGNMENT_MARKER_KEY), ("SET", ASSIGNMENT_RAN_KEY, 1, "PX", interval_ms)])
 
 
 def _send_step_task(names: list[str], at: float) -> None:

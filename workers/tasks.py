@@ -1,7 +1,9 @@
 """Celery tasks: thin wrappers that call services and own only queueing and retry policy."""
 
 import logging
+import math
 import threading
+import time
 
 import requests
 from celery import Task, shared_task
@@ -18,7 +20,7 @@ from workers.long_lived import keep_trying, retry_delay, settle_long_lived_proce
 from workers.step_requests import (
     ASSIGN_TASK,
     STEP_TASK,
-    assignment_marker_clear,
+    assignment_run_started,
     queue_assignment,
     queue_steps,
 )
@@ -49,12 +51,24 @@ def step_robots(self: Task, names: list[str], requested_at: float | None = None)
         raise self.retry(args=(failed, requested_at), countdown=delay)
 
 
+# When this process's assignment runs last brought the waiting reasons up to date (monotonic s).
+_reasons_refreshed_at = -math.inf
+
+
 @shared_task(name=ASSIGN_TASK, ignore_result=True)
 def assign_missions() -> None:
-    """Bind unbound missions to free capable robots. The marker goes first: a request made during the run
-    queues one more, which sees what this one may have read too early."""
-    assignment_marker_clear()
-    missions_assign()
+    """Bind unbound missions to free capable robots, with the waiting reasons once per
+    `ASSIGNMENT_CHECK_SECONDS` (a run that reads every robot); a burst still arriving is run again later.
+    The marker goes first: a request made during the run queues one more, which sees what this one may
+    have read too early."""
+    global _reasons_refreshed_at
+    assignment_run_started()
+    with_reasons = time.monotonic() - _reasons_refreshed_at >= settings.ASSIGNMENT_CHECK_SECONDS
+    if with_reasons:
+        _reasons_refreshed_at = time.monotonic()
+    run = missions_assign(with_reasons=with_reasons)
+    if run.hold is not None:
+        queue_assignment(countdown=run.hold)
 
 
 @shared_task(name="fleet.assign_waiting", ignore_result=True)

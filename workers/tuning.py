@@ -31,6 +31,9 @@ STEP_MARKER_SECONDS = 10
 # How long a queued assignment run keeps others from being queued, at most (its marker's expiry): a run lost
 # with a killed worker delays the next by no more than this.
 ASSIGNMENT_MARKER_SECONDS = 10
+# Assignment runs start at most this often: a run's fixed cost (a task, the free robots' read) paid per
+# mission posted would be most of an order's (issue 41), and a mission waits at most this much longer.
+ASSIGNMENT_RUN_INTERVAL_SECONDS = 0.1
 # A step request that could not be queued (Redis or the broker away) is tried again this often.
 UNQUEUED_RETRY_SECONDS = 1.0
 

@@ -14,17 +14,18 @@ NEW_UNSHOWN = ("progress", "progress_seen_at")
 UNSHOWN = {**previous.UNSHOWN, TABLE: (KIND, (*PREVIOUS_UNSHOWN, *NEW_UNSHOWN))}
 
 
-def _make_triggers(unshown: tuple[str, ...], leave_out: tuple[str, ...]):
-    """Make the mission table's triggers again, leaving out `unshown`, comparing its columns but `leave_out`
-    (those about to go, going back)."""
+def _make_triggers(unshown: tuple[str, ...], leave_out: tuple[str, ...], table: str = TABLE):
+    """Make the table's triggers again (the mission's unless told), leaving out `unshown`, comparing its
+    columns but `leave_out` (those about to go, going back)."""
+    kind = previous.UNSHOWN[table][0]
 
     def make(apps, schema_editor) -> None:
         connection = schema_editor.connection
         with connection.cursor() as cursor:
-            columns = [c.name for c in connection.introspection.get_table_description(cursor, TABLE)]
-            cursor.execute(previous.initial._drop_triggers(TABLE))
+            columns = [c.name for c in connection.introspection.get_table_description(cursor, table)]
+            cursor.execute(previous.initial._drop_triggers(table))
             shown = [column for column in columns if column not in leave_out]
-            cursor.execute(previous.triggers_sql(TABLE, KIND, unshown, shown))
+            cursor.execute(previous.triggers_sql(table, kind, unshown, shown))
 
     return make
 

@@ -237,6 +237,13 @@ class RobotStatusSerializer(serializers.Serializer):
     online = serializers.BooleanField()
     battery_level = serializers.FloatField()
     state = serializers.ChoiceField(choices=RobotState.choices)
+    state_since = serializers.DateTimeField(
+        allow_null=True, help_text="When the state last changed; null before its first change."
+    )
+    operating_mode = serializers.CharField(
+        help_text="The VDA 5050 operatingMode the robot last reported (AUTOMATIC, MANUAL, ...); empty before "
+        "its first state. A robot takes no new mission in a mode that takes no orders."
+    )
     info_messages = serializers.JSONField(allow_null=True)
     errors = serializers.JSONField()
     maps = RobotMapSerializer(

@@ -31,6 +31,7 @@ from dispatch.assignment import (
     RobotSelector,
     UnboundMission,
     assign,
+    burst_hold,
 )
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
@@ -501,3 +502,50 @@ def _brute_force(missions: list[UnboundMission], robots: list[CandidateRobot]) -
             best, best_served = key, {m.name for m, _ in pairs}
     assert best is not None
     return _Best(served=best_served, without_pose=best[1], distance=best[2])
+
+
+# --- burst_hold: a burst is bound together once it stops arriving ------------------------------------------
+
+QUIET, LONGEST = timedelta(seconds=0.25), timedelta(seconds=10)
+
+
+def hold(ages: list[float], free_robots: int) -> float | None:
+    """burst_hold for missions created `ages` seconds before now, in seconds."""
+    now = datetime(2026, 11, 28, tzinfo=UTC)
+    created = [now - timedelta(seconds=age) for age in ages]
+    held = burst_hold(created, free_robots, now=now, quiet=QUIET, longest=LONGEST)
+    return None if held is None else held.total_seconds()
+
+
+@pytest.mark.parametrize(
+    ("ages", "free_robots", "expected"),
+    [
+        ([], 5, None),  # nothing to hold
+        ([0.1, 0.05], 5, 0.2),  # still arriving: until the newest is QUIET old
+        ([1.0, 0.5], 5, None),  # paused
+        ([0.1, 0.05], 2, None),  # as many missions as free robots: every robot is used anyway
+        ([0.1, 0.05, 0.0], 2, None),  # more missions than robots
+        ([9.9, 0.0], 5, pytest.approx(0.1)),  # a stream: held no longer than LONGEST after its oldest
+        ([10.0, 0.0], 5, None),
+        ([0.0], 0, None),  # no free robot: nothing to choose
+    ],
+)
+def test_a_burst_is_held_while_it_arrives_and_robots_outnumber_it(
+    ages: list[float], free_robots: int, expected: float | None
+) -> None:
+    result = hold(ages, free_robots)
+    assert result == (pytest.approx(expected) if isinstance(expected, float) else expected)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    ages=st.lists(st.floats(min_value=0.0, max_value=30.0), min_size=1, max_size=20),
+    free_robots=st.integers(min_value=0, max_value=30),
+)
+def test_a_hold_never_outlasts_the_quiet_or_the_longest_hold(ages: list[float], free_robots: int) -> None:
+    result = hold(ages, free_robots)
+    if result is None:
+        return
+    assert len(ages) < free_robots
+    assert 0 < result <= QUIET.total_seconds() - min(ages) + 1e-6  # timedelta: whole microseconds
+    assert result <= LONGEST.total_seconds() - max(ages) + 1e-6

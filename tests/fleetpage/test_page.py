@@ -7,8 +7,13 @@ from pathlib import Path
 
 import pytest
 from django.conf import settings
+from django.db import connection
+from django.utils import timezone
 
 from access.choices import command_actor
+from missions.rows import RELEASE_SQL, binding_time
+from missions.services import mission_create, missions_assign
+from robots.models import Robot
 from robots.services import robot_create
 from robots.status import robot_check_heartbeats, robot_status_write, robots_came_online
 from tests.browser import allow_database, chromium_page, log_in, needs_chromium
@@ -110,3 +115,30 @@ def test_a_thousand_robots_are_drawn_and_follow_their_status(server: GranianServ
         assert fleet.titles() == expected_titles(names, 2, False)
         expect(fleet.page.locator("#counts")).to_contain_text(f"{FLEET} robots, 0 online")
         assert fleet.still_loaded()
+
+
+def test_a_mission_given_back_to_assignment_leaves_its_robots_queue_on_the_page(
+    server: GranianServer, make_robot, settings
+):
+    settings.ASSIGNMENT_QUIET_SECONDS = 0.0  # bound at once: the burst hold has tests of its own
+    robot = make_robot(prefix="giver")
+    Robot.objects.filter(name=robot.name).update(
+        online=True, battery_level=80.0, last_state_at=timezone.now()
+    )
+    route = {"route": {"waypoints": [{"x": 1, "y": 0, "map_id": "hall"}]}}
+    mission_create(actor=command_actor("test"), name="given", prefix=None, spec={"mission_tree": [route]})
+    assert missions_assign().bound == {"given": robot.name}
+
+    with fleet_page(server.url, username=staff_user()) as fleet:
+        fleet.select(robot.name)
+        queue = fleet.page.locator("#robot-queue li")
+        expect(queue).to_have_count(1)
+        expect(fleet.mission_row("given").locator(".robot-link")).to_have_text(robot.name)
+
+        # The step's release alone (a step usually writes the mission first, which redraws the robot too).
+        now = timezone.now()
+        with connection.cursor() as cursor:
+            cursor.execute(RELEASE_SQL, [now, binding_time(now), "Robot is offline", "given", robot.name])
+
+        expect(fleet.mission_row("given").locator(".robot-link")).to_have_text("(unbound)")
+        expect(queue).to_have_count(0)

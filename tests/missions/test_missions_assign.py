@@ -9,18 +9,26 @@ from typing import Any
 import pytest
 from django.db import connection
 from django.utils import timezone
+from pytest_django.fixtures import Settings
 
-from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE
+from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE, NOT_YET_ASSIGNED
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import robot_step
-from missions.services import mission_create, missions_assign
+from missions.services import mission_claim, mission_create, missions_assign
 from robots.models import Robot
 from robots.services import robot_delete
+from tests.dispatch.builders import finished
 from tests.factories import TEST_ACTOR, RobotFactory
-from tests.missions.test_robot_step import put_state
+from tests.missions.test_robot_step import orders, put_state
 
 pytestmark = pytest.mark.django_db(transaction=True)
+
+
+@pytest.fixture(autouse=True)
+def bind_at_once(settings: Settings) -> None:
+    """Missions created just now are bound at once: the burst hold has tests of its own below."""
+    settings.ASSIGNMENT_QUIET_SECONDS = 0.0
 
 
 def robot(name: str, *, x: float = 0.0, y: float = 0.0, labels: tuple[str, ...] = (), **fields: Any) -> Robot:
@@ -51,7 +59,7 @@ def test_the_nearest_free_robot_is_bound_and_the_binding_recorded() -> None:
     robot("near", x=2.0)
     unbound("m1", x=1.0)
 
-    assert missions_assign() == {"m1": "near"}
+    assert missions_assign().bound == {"m1": "near"}
 
     mission = Mission.objects.get(name="m1")
     assert (mission.robot, mission.waiting_reason, mission.state) == ("near", None, MissionState.PENDING)
@@ -64,12 +72,12 @@ def test_a_mission_nobody_can_do_waits_with_its_reason_until_a_robot_qualifies()
     robot("plain")
     unbound("m1", robot_selector={"labels": ["forklift"]})
 
-    assert missions_assign() == {}
+    assert missions_assign().bound == {}
     assert Mission.objects.get(name="m1").waiting_reason == NO_LABELS.format(labels="forklift")
     assert robot_of("m1") is None
 
     Robot.objects.filter(name="plain").update(labels=["forklift"])
-    assert missions_assign() == {"m1": "plain"}
+    assert missions_assign().bound == {"m1": "plain"}
 
 
 def test_reasons_follow_the_robots_state() -> None:
@@ -90,9 +98,9 @@ def test_a_robot_with_a_bound_mission_not_yet_started_gets_no_second_one() -> No
     robot("r1")
     unbound("m1")
     unbound("m2", priority=5)
-    assert missions_assign() == {"m2": "r1"}
+    assert missions_assign().bound == {"m2": "r1"}
 
-    assert missions_assign() == {}
+    assert missions_assign().bound == {}
     assert robot_of("m1") is None
 
 
@@ -103,7 +111,7 @@ def test_a_robots_own_queue_head_runs_before_younger_unbound_missions_of_its_pri
     mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec={"robot": "r1", "mission_tree": [route]})
     unbound("m1")
 
-    assert missions_assign() == {"m1": "r2"}
+    assert missions_assign().bound == {"m1": "r2"}
 
 
 def test_many_runs_at_once_never_bind_a_mission_twice_nor_a_robot_twice() -> None:
@@ -119,7 +127,7 @@ def test_many_runs_at_once_never_bind_a_mission_twice_nor_a_robot_twice() -> Non
         try:
             barrier.wait()
             for _ in range(3):
-                results.append(missions_assign())
+                results.append(missions_assign().bound)
         except BaseException as error:  # reported below
             errors.append(error)
         finally:
@@ -149,7 +157,7 @@ def test_a_step_gives_back_a_bound_mission_its_robot_cannot_start(make_robot) ->
     )
     put_state(created, header_id=1, battery=5.0)  # below the critical level, as the step sees it
     unbound("m1", robot_selector={"labels": ["forklift"]})
-    assert missions_assign() == {"m1": created.name}
+    assert missions_assign().bound == {"m1": created.name}
 
     outcome = robot_step(name=created.name)
 
@@ -176,7 +184,7 @@ def test_a_named_mission_is_not_given_back_by_its_robot(make_robot) -> None:
 def test_missions_bound_to_a_deleted_robot_go_back_to_the_pool() -> None:
     doomed = robot("doomed")
     unbound("m1")
-    assert missions_assign() == {"m1": "doomed"}
+    assert missions_assign().bound == {"m1": "doomed"}
 
     robot_delete(actor=TEST_ACTOR, robot=doomed)
     missions_assign()
@@ -190,8 +198,147 @@ def test_an_unbound_mission_past_its_deadline_fails_and_is_never_bound() -> None
     robot("r1")
     unbound("late", deadline=timezone.now() - timedelta(seconds=1))
 
-    assert missions_assign() == {}
+    assert missions_assign().bound == {}
 
     mission = Mission.objects.get(name="late")
     assert (mission.state, mission.failure_category, mission.robot) == (MissionState.FAILED, "DEADLINE", None)
     assert mission.node_status["root"]["state"] == MissionState.FAILED
+
+
+def created_ago(name: str, seconds: float) -> None:
+    Mission.objects.filter(name=name).update(created_at=timezone.now() - timedelta(seconds=seconds))
+
+
+def test_a_burst_still_arriving_is_held_while_free_robots_outnumber_it(settings: Settings) -> None:
+    settings.ASSIGNMENT_QUIET_SECONDS, settings.ASSIGNMENT_HOLD_SECONDS = 5.0, 60.0
+    for index in range(3):
+        robot(f"r{index}", x=float(index))
+    unbound("m1")
+    unbound("m2")
+
+    run = missions_assign()
+    assert run.bound == {}
+    assert run.hold is not None and 4.0 < run.hold <= 5.0
+    assert robot_of("m1") is None
+
+    created_ago("m1", 6.0)  # the burst paused: the newest is older than the quiet time
+    created_ago("m2", 5.5)
+    run = missions_assign()
+    assert (run.hold, sorted(run.bound)) == (None, ["m1", "m2"])
+
+
+def test_a_burst_is_bound_at_once_when_it_has_as_many_missions_as_free_robots(
+    settings: Settings,
+) -> None:
+    settings.ASSIGNMENT_QUIET_SECONDS = 5.0
+    robot("r0")
+    robot("r1", x=1.0)
+    robot("busy", x=2.0, online=False)  # not free: does not count
+    unbound("m1")
+    unbound("m2")
+
+    assert sorted(missions_assign().bound) == ["m1", "m2"]
+
+
+def test_a_stream_that_never_pauses_is_bound_once_its_oldest_waited_the_longest_hold(
+    settings: Settings,
+) -> None:
+    settings.ASSIGNMENT_QUIET_SECONDS, settings.ASSIGNMENT_HOLD_SECONDS = 5.0, 10.0
+    for index in range(3):
+        robot(f"r{index}", x=float(index))
+    unbound("m1")
+    unbound("m2")
+    created_ago("m1", 11.0)  # m2 just came, but m1 waited long enough
+
+    assert sorted(missions_assign().bound) == ["m1", "m2"]
+
+
+def test_a_run_without_reasons_reads_only_free_robots_and_leaves_the_reasons(
+    settings: Settings,
+) -> None:
+    robot("plain")
+    unbound("m1", robot_selector={"labels": ["lift"]})
+
+    assert missions_assign(with_reasons=False).bound == {}
+    assert Mission.objects.get(name="m1").waiting_reason == NOT_YET_ASSIGNED
+
+    assert missions_assign(with_reasons=True).bound == {}
+    assert Mission.objects.get(name="m1").waiting_reason == NO_LABELS.format(labels="lift")
+
+
+def test_a_robot_fallen_free_claims_the_oldest_of_the_highest_priority_it_can_do() -> None:
+    robot("r1", labels=("lift",))
+    robot("r2", x=100.0)  # also free: a claim is for its robot alone
+    unbound("old")
+    unbound("urgent_lift", priority=5, robot_selector={"labels": ["lift"]})
+    unbound("urgent_other", priority=5, robot_selector={"labels": ["crane"]})
+    for name in ("old", "urgent_lift", "urgent_other"):
+        created_ago(name, 1.0)
+
+    assert mission_claim(robot="r1") == "urgent_lift"
+    assert robot_of("urgent_lift") == "r1"
+    assert Mission.objects.get(name="urgent_lift").assignment[-1]["robot"] == "r1"
+    assert mission_claim(robot="r1") is None  # it has a mission bound now: not free
+
+
+def test_a_claim_leaves_missions_younger_than_the_quiet_time_to_the_run(settings: Settings) -> None:
+    settings.ASSIGNMENT_QUIET_SECONDS = 5.0
+    robot("r1")
+    unbound("fresh")
+
+    assert mission_claim(robot="r1") is None
+    created_ago("fresh", 6.0)
+    assert mission_claim(robot="r1") == "fresh"
+
+
+def test_a_robot_that_may_not_work_claims_nothing() -> None:
+    robot("manual", operating_mode="MANUAL")
+    robot("low", battery_level=5.0)
+    unbound("m1")
+    created_ago("m1", 1.0)
+
+    assert mission_claim(robot="manual") is None
+    assert mission_claim(robot="low") is None
+    assert mission_claim(robot="ghost") is None
+    assert robot_of("m1") is None
+
+
+def test_a_robot_in_a_mode_that_takes_no_orders_is_not_free() -> None:
+    robot("manual", operating_mode="MANUAL")
+    robot("service", x=5.0, operating_mode="SERVICE")
+    robot("auto", x=50.0, operating_mode="AUTOMATIC")
+    unbound("m1")
+
+    assert missions_assign().bound == {"m1": "auto"}
+
+
+def test_equally_near_robots_go_to_the_longest_idle() -> None:
+    now = timezone.now()
+    robot("recent", x=1.0, state_since=now - timedelta(seconds=5))
+    robot("longest", x=-1.0, state_since=now - timedelta(minutes=5))
+    robot("never_changed", y=1.0)  # no state change seen: counts as the most recently idle
+    unbound("m1")
+
+    assert missions_assign().bound == {"m1": "longest"}
+
+
+def test_a_robot_that_ends_its_last_mission_starts_an_unbound_one_in_the_same_step(make_robot) -> None:
+    created = make_robot(prefix="claim")
+    Robot.objects.filter(name=created.name).update(
+        online=True, battery_level=80.0, last_state_at=timezone.now()
+    )
+    put_state(created, header_id=1)
+    route = {"route": {"waypoints": [{"x": 0, "y": 0, "map_id": "map"}]}}
+    spec = {"robot": created.name, "mission_tree": [route]}
+    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec=spec)
+    [first] = orders(robot_step(name=created.name))
+    unbound("next")
+
+    put_state(created, header_id=2, state=finished(first))
+    outcome = robot_step(name=created.name)
+
+    assert [mission.name for mission in outcome.finished] == ["own"]
+    assert [order.order_id for order in orders(outcome)] == ["next-n0-r0"]
+    mission = Mission.objects.get(name="next")
+    assert (mission.robot, mission.state) == (created.name, MissionState.RUNNING)
+    assert mission.assignment[-1]["robot"] == created.name

@@ -4,6 +4,7 @@ against the real Redis (the Celery broker)."""
 import time
 import uuid
 from collections.abc import Iterator
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import orjson
@@ -114,7 +115,7 @@ def _assignment_tasks() -> list[bytes]:
 def no_assignment_queued() -> Iterator[None]:
     def clear() -> None:
         redis = livestate.client()
-        redis.delete(step_requests.ASSIGNMENT_MARKER_KEY)
+        redis.delete(step_requests.ASSIGNMENT_MARKER_KEY, step_requests.ASSIGNMENT_RAN_KEY)
         for message in _assignment_tasks():
             redis.lrem(settings.STEP_QUEUE, 0, message)
 
@@ -128,9 +129,39 @@ def test_assignment_runs_are_coalesced_one_queued_at_a_time(no_assignment_queued
     step_requests.queue_assignment()
     assert len(_assignment_tasks()) == 1
 
-    step_requests.assignment_marker_clear()  # what the run does first
+    step_requests.assignment_run_started()  # what the run does first
     step_requests.queue_assignment()
     assert len(_assignment_tasks()) == 2
+
+
+def _eta(message: bytes) -> datetime | None:
+    eta = orjson.loads(message)["headers"]["eta"]
+    return None if eta is None else datetime.fromisoformat(eta)
+
+
+def test_a_run_asked_for_right_after_one_started_waits_for_the_run_interval(
+    no_assignment_queued: None,
+) -> None:
+    step_requests.queue_assignment()
+    assert _eta(_assignment_tasks()[0]) is None  # no run started lately: at once
+
+    step_requests.assignment_run_started()
+    asked_at = datetime.now(UTC)
+    step_requests.queue_assignment()
+    sent_by = datetime.now(UTC)
+    eta = _eta(_assignment_tasks()[0])  # the newest: Celery pushes on the list's left
+    assert eta is not None
+    interval = timedelta(seconds=step_requests.tuning.ASSIGNMENT_RUN_INTERVAL_SECONDS)
+    assert asked_at < eta <= sent_by + interval
+
+
+def test_a_held_burst_is_run_again_after_its_hold(no_assignment_queued: None) -> None:
+    asked_at = datetime.now(UTC)
+    step_requests.queue_assignment(countdown=2.0)
+    eta = _eta(_assignment_tasks()[0])
+    assert eta is not None and asked_at + timedelta(seconds=1.9) < eta < asked_at + timedelta(seconds=3)
+    ttl = livestate.client().ttl(step_requests.ASSIGNMENT_MARKER_KEY)
+    assert ttl > step_requests.tuning.ASSIGNMENT_MARKER_SECONDS  # the marker outlives the wait
 
 
 def test_a_lost_assignment_run_blocks_later_ones_only_until_its_marker_expires(

@@ -32,6 +32,7 @@ logger = logging.getLogger(__name__)
 
 STATUS_COLUMNS = (
     "battery_level",
+    "operating_mode",
     "pose_x",
     "pose_y",
     "pose_theta",
@@ -89,6 +90,7 @@ class StatusWriter:
         position = state.agv_position
         values: dict[str, Any] = {
             "battery_level": state.battery_state.battery_charge,
+            "operating_mode": state.operating_mode.value,
             "hardware_version": {"manufacturer": state.manufacturer, "serial_number": state.serial_number},
             "errors": {
                 error.error_type: {

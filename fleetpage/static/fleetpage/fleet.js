@@ -419,11 +419,16 @@ function receive(kind, object) {
     deleted ? robots.delete(object.name) : robots.set(object.name, object);
     changed.robots.add(object.name);
   } else {
+    // A mission given back to assignment leaves its robot (robot null): that robot is redrawn too.
+    const robotBefore = missions.get(object.name)?.robot ?? null;
     deleted ? missions.delete(object.name) : missions.set(object.name, object);
+    for (const robot of new Set([robotBefore, object.robot])) {
+      if (robot === null) continue;
+      if (running.get(robot) === object.name) running.delete(robot);
+      changed.missionRobots.add(robot);
+    }
     if (!deleted && object.status.state === "RUNNING") running.set(object.robot, object.name);
-    else if (running.get(object.robot) === object.name) running.delete(object.robot);
     changed.missions.add(object.name);
-    if (object.robot !== null) changed.missionRobots.add(object.robot);
   }
   scheduleFrame();
 }

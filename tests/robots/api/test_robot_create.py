@@ -50,6 +50,8 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "online": False,
             "battery_level": 0.0,
             "state": "IDLE",
+            "state_since": None,
+            "operating_mode": "",
             "info_messages": None,
             "errors": {},
             "maps": [],

@@ -1,5 +1,7 @@
 """GET /robot/{name}."""
 
+from datetime import UTC, datetime
+
 import pytest
 
 from tests.factories import RobotFactory
@@ -17,6 +19,8 @@ def test_returns_the_robot_with_its_status(api):
         online=True,
         battery_level=42.0,
         state="ON_TASK",
+        state_since=datetime(2026, 11, 28, 4, 30, tzinfo=UTC),
+        operating_mode="AUTOMATIC",
         hardware_version={"manufacturer": "RobotCompany", "serial_number": "carter01"},
         software_version={"os": "linux"},
         agv_class="FORKLIFT",
@@ -45,6 +49,8 @@ def test_returns_the_robot_with_its_status(api):
         "online": True,
         "battery_level": 42.0,
         "state": "ON_TASK",
+        "state_since": "2026-11-28T04:30:00Z",
+        "operating_mode": "AUTOMATIC",
         "info_messages": {"info": "charging soon"},
         "errors": {},
         "maps": [{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
