@@ -53,6 +53,7 @@ __all__ = [
     "UnboundMission",
     "assign",
     "burst_hold",
+    "choices_of",
 ]
 
 # Why a mission waits: one reason per unbound mission, the first that holds in this order. The capability
@@ -138,7 +139,7 @@ class Assignment:
 def assign(missions: Sequence[UnboundMission], robots: Sequence[CandidateRobot]) -> Assignment:
     """Bind unbound missions to free capable robots by the module's rules; `robots` are all robots (their
     state explains the waiting reasons), bound or not."""
-    missions = sorted(missions, key=lambda mission: (-mission.priority, mission.created, mission.name))
+    missions = sorted(missions, key=_mission_order)
     robots = sorted(robots, key=lambda robot: robot.name)  # ties go the same way whatever the input order
     fleet = _Fleet(robots)
     capability = _Capability(missions, robots)
@@ -161,6 +162,32 @@ def assign(missions: Sequence[UnboundMission], robots: Sequence[CandidateRobot])
         if mission.name not in bindings
     }
     return Assignment(bindings=bindings, waiting=waiting)
+
+
+def choices_of(robot: CandidateRobot, missions: Sequence[UnboundMission]) -> list[str]:
+    """The unbound missions a free robot may take by the module's rules, best first (the highest priority,
+    then the oldest): `assign` would give it the first when it is the only free robot, and it takes the
+    next when another robot took that one meanwhile. None if the robot is not free."""
+    if not (robot.online and robot.idle and robot.battery_ok):
+        return []
+    offer = (robot.labels, robot.robot_type, robot.action_types, robot.enabled_maps)
+    return [
+        mission.name
+        for mission in sorted(missions, key=_mission_order)
+        if _ahead_of(mission, robot.queue_head) and _stage(mission.selector, mission.maps, *offer) == _CAPABLE
+    ]
+
+
+def _mission_order(mission: UnboundMission) -> tuple[int, datetime, str]:
+    """Highest priority first, oldest first among equals (names break ties)."""
+    return -mission.priority, mission.created, mission.name
+
+
+def _ahead_of(mission: UnboundMission, head: QueueHead | None) -> bool:
+    """The unbound mission goes before the robot's own next mission."""
+    if head is None or mission.priority != head.priority:
+        return head is None or mission.priority > head.priority
+    return mission.created < head.created
 
 
 def burst_hold(

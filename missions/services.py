@@ -19,7 +19,7 @@ from django.utils import timezone
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
-from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold
+from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold, choices_of
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
@@ -341,6 +341,12 @@ LOCK_UNBOUND_SQL = f"""
       AND lifecycle = '{Lifecycle.ALIVE}'
     ORDER BY name FOR UPDATE SKIP LOCKED
 """
+LOCK_FIRST_UNBOUND_SQL = f"""
+    SELECT name FROM {Mission._meta.db_table}
+    WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
+      AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY array_position(%s::varchar[], name) LIMIT 1 FOR UPDATE SKIP LOCKED
+"""
 # Its snapshot is taken after the locks: a binding another run committed before this one locked the robot
 # is seen, and the robot is not bound twice. `robot IS NULL` again: a mission is never bound twice.
 BIND_SQL = f"""
@@ -432,7 +438,8 @@ def mission_claim(*, robot: str) -> str | None:
     returns the mission bound, if any.
 
     In a busy fleet robots fall free one at a time while missions wait: the robot is then the only free
-    one, and binding it in its own step spares a run and a step (issue 41's steady state). Missions younger
+    one, and binding it in its own step spares a run and a step (issue 41's steady state). Robots that
+    fall free together take different missions (each its best one that no other claim holds). Missions younger
     than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them for a burst, and so is a
     robot that none of the `CLAIM_PAGE` first missions suits (the run reads them all).
     """
@@ -444,9 +451,14 @@ def mission_claim(*, robot: str) -> str | None:
     )
     if not inputs.missions:
         return None
-    bindings = assign(inputs.missions, inputs.robots).bindings
-    with transaction.atomic():
-        bound = _bind(bindings, now)
+    choices = choices_of(inputs.robots[0], inputs.missions)
+    if not choices:
+        return None
+    with transaction.atomic(), connection.cursor() as cursor:
+        # The best choice no other claim holds: robots falling free together take different missions.
+        cursor.execute(LOCK_FIRST_UNBOUND_SQL, [choices, choices])
+        row = cursor.fetchone()
+        bound = _bind({row[0]: robot}, now) if row else {}
     return next(iter(bound), None)
 
 

@@ -32,6 +32,7 @@ from dispatch.assignment import (
     UnboundMission,
     assign,
     burst_hold,
+    choices_of,
 )
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
@@ -502,6 +503,30 @@ def _brute_force(missions: list[UnboundMission], robots: list[CandidateRobot]) -
             best, best_served = key, {m.name for m, _ in pairs}
     assert best is not None
     return _Best(served=best_served, without_pose=best[1], distance=best[2])
+
+
+# --- choices_of: what a robot fallen free takes from the pool in its own step ----------------------------
+
+
+@PROPERTIES
+@given(fleets())
+def test_a_robots_choices_are_the_missions_feasible_for_it_best_first(fleet: Fleet) -> None:
+    missions, robots = fleet
+    for robot in robots:
+        choices = choices_of(robot, missions)
+
+        assert set(choices) == {m.name for m in missions if feasible(m, robot)}
+        ranks = {m.name: (-m.priority, m.created, m.name) for m in missions}
+        assert choices == sorted(choices, key=ranks.__getitem__)
+
+
+@PROPERTIES
+@given(fleets())
+def test_a_robots_first_choice_is_what_assignment_gives_it_alone(fleet: Fleet) -> None:
+    missions, robots = fleet
+    for robot in robots:
+        alone = assign(missions, [robot]).bindings
+        assert choices_of(robot, missions)[:1] == list(alone)
 
 
 # --- burst_hold: a burst is bound together once it stops arriving ------------------------------------------

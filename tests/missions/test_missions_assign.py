@@ -342,3 +342,35 @@ def test_a_robot_that_ends_its_last_mission_starts_an_unbound_one_in_the_same_st
     mission = Mission.objects.get(name="next")
     assert (mission.robot, mission.state) == (created.name, MissionState.RUNNING)
     assert mission.assignment[-1]["robot"] == created.name
+
+
+def test_robots_falling_free_together_claim_different_missions_the_best_ones() -> None:
+    robots = [f"r{index}" for index in range(6)]
+    for index, name in enumerate(robots):
+        robot(name, x=float(index))
+    for index in range(10):
+        unbound(f"m{index}", priority=1 if index >= 7 else 0)
+        created_ago(f"m{index}", 10.0 - index / 10)  # m0 the oldest
+    barrier = threading.Barrier(len(robots))
+    claimed: dict[str, str | None] = {}
+    errors: list[BaseException] = []
+
+    def claim(name: str) -> None:
+        try:
+            barrier.wait()
+            claimed[name] = mission_claim(robot=name)
+        except BaseException as error:  # reported below
+            errors.append(error)
+        finally:
+            connection.close()
+
+    threads = [threading.Thread(target=claim, args=(name,)) for name in robots]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+
+    assert not errors
+    assert None not in claimed.values()  # none came away empty for another's lock
+    assert sorted(claimed.values()) == ["m0", "m1", "m2", "m7", "m8", "m9"]  # priority 1 first, then oldest
+    assert {robot_of(mission): mission for mission in claimed.values()} == claimed
