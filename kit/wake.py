@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterable
 from django.db import transaction
 
 StepRequester = Callable[[list[str]], None]
-AssignmentRequester = Callable[[], None]
+AssignmentRequester = Callable[[bool], None]  # its argument: `defer_while_busy`
 
 _requester: StepRequester | None = None
 _assignment_requester: AssignmentRequester | None = None
@@ -36,10 +36,13 @@ def request_steps(names: Iterable[str]) -> None:
     transaction.on_commit(lambda: requester(names))
 
 
-def request_assignment() -> None:
+def request_assignment(*, defer_while_busy: bool = False) -> None:
     """Run assignment (bind unbound missions to free capable robots) once the current transaction commits;
-    requests made while one is queued are one run. Beat's periodic check makes up for a request lost."""
+    requests made while one is queued are one run. Beat's periodic check makes up for a request lost.
+
+    `defer_while_busy`: while the last run left no free robot idle, not until that news is old (a new
+    mission: in a busy fleet the robots falling free take it, each in its own step)."""
     requester = _assignment_requester
     if requester is None:
         raise RuntimeError("no assignment requester installed: is the workers app in INSTALLED_APPS?")
-    transaction.on_commit(requester)
+    transaction.on_commit(lambda: requester(defer_while_busy))

@@ -98,9 +98,10 @@ class Mission(models.Model):
                 name="mission_unnoticed_idx",
             ),
             models.Index(fields=["robot"], condition=models.Q(state="RUNNING"), name="mission_running_idx"),
-            # Assignment reads the unbound queue on every run; few rows, however many missions there are.
+            # Assignment reads the unbound queue in its order (highest priority, oldest first): a run all of
+            # it, a robot fallen free its first few; few rows, however many missions there are.
             models.Index(
-                fields=["queue_position"],
+                fields=["-priority", "queue_position"],
                 condition=models.Q(state="PENDING", robot__isnull=True),
                 name="mission_unbound_idx",
             ),

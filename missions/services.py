@@ -94,7 +94,7 @@ def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Ma
         raise ObjectError.exists("mission", mission_name) from error
     if mission.robot is None:
         if mission.state == MissionState.PENDING:
-            request_assignment()
+            request_assignment(defer_while_busy=True)
     elif not queued_behind_others:
         request_steps([mission.robot])
     return mission
@@ -388,6 +388,7 @@ WAITING_REASONS_SQL = f"""
 class AssignmentRun:
     bound: dict[str, str]  # the bindings made: mission -> robot
     hold: float | None = None  # a burst is arriving: run again in this many seconds (`burst_hold`)
+    idle_robots: int | None = None  # free robots the run left without a mission; None: not known
 
 
 def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
@@ -403,12 +404,14 @@ def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
     """
     now = timezone.now()
     with connection.cursor() as cursor:
-        cursor.execute(RELEASE_ORPHANS_SQL, [now, binding_time(now), ROBOT_DELETED])
+        if with_reasons:  # a robot deleted: rare, and its missions wait at most until the next such run
+            cursor.execute(RELEASE_ORPHANS_SQL, [now, binding_time(now), ROBOT_DELETED])
         cursor.execute(DEADLINE_UNBOUND_SQL, [now, now, DEADLINE_PASSED, now])
     inputs = assignment_inputs(free_only=not with_reasons)
-    if not inputs.missions:
-        return AssignmentRun({})
     free_robots = sum(robot.online and robot.idle and robot.battery_ok for robot in inputs.robots)
+    if not inputs.missions:
+        # Read only the free robots: every one of them is idle. Every robot, without missions: none read.
+        return AssignmentRun({}, idle_robots=None if with_reasons else free_robots)
     hold = burst_hold(
         [mission.created for mission in inputs.missions],
         free_robots,
@@ -417,7 +420,7 @@ def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
         longest=timedelta(seconds=settings.ASSIGNMENT_HOLD_SECONDS),
     )
     if hold is not None:
-        return AssignmentRun({}, hold=hold.total_seconds())
+        return AssignmentRun({}, hold=hold.total_seconds(), idle_robots=free_robots)
     result = assign(inputs.missions, inputs.robots)
     with transaction.atomic():
         bound = _bind(result.bindings, now)
@@ -429,7 +432,7 @@ def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
                 cursor.execute(WAITING_REASONS_SQL, [now, list(changed), list(changed.values())])
         if len(bound) < len(result.bindings):
             request_assignment()
-    return AssignmentRun(bound)
+    return AssignmentRun(bound, idle_robots=free_robots - len(bound))
 
 
 def mission_claim(*, robot: str) -> str | None:

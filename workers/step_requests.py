@@ -17,6 +17,7 @@ import os
 import threading
 import time
 from collections.abc import Iterable
+from enum import IntEnum
 
 import kombu
 import kombu.exceptions
@@ -34,8 +35,13 @@ ASSIGN_TASK = "fleet.assign_missions"  # workers.tasks.assign_missions
 # Exists while an assignment run is queued and has not started: at most one queued at a time. It expires,
 # so that a run lost with a killed worker blocks none after it.
 ASSIGNMENT_MARKER_KEY = f"{livestate.PREFIX}:assignment-queued"
+REASONS_ASKED = "reasons"  # the marker's value when the run queued is to bring the waiting reasons up to date
 # Exists for ASSIGNMENT_RUN_INTERVAL_SECONDS after a run started: a run asked for meanwhile waits for it.
 ASSIGNMENT_RAN_KEY = f"{livestate.PREFIX}:assignment-ran"
+# Exists for ASSIGNMENT_FLEET_BUSY_SECONDS after a run left no free robot idle (every robot busy, or bound by
+# it): a new unbound mission then asks for its run only once that news is old
+# (`request_assignment(defer_while_busy=True)`), so that a busy fleet's runs are not one per new mission.
+ASSIGNMENT_FLEET_BUSY_KEY = f"{livestate.PREFIX}:assignment-fleet-busy"
 
 
 def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
@@ -68,28 +74,31 @@ def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
             raise
 
 
-def queue_assignment(*, countdown: float = 0.0) -> None:
+def queue_assignment(
+    *, countdown: float = 0.0, defer_while_busy: bool = False, with_reasons: bool = False
+) -> None:
     """Queue an assignment run unless one is queued already (`ASSIGNMENT_MARKER_KEY`), to start in
-    `countdown` s, and no sooner than `ASSIGNMENT_RUN_INTERVAL_SECONDS` after the last run started."""
-    marked, since_last = livestate.round_trip(
+    `countdown` s, and no sooner than `ASSIGNMENT_RUN_INTERVAL_SECONDS` after the last run started;
+    `defer_while_busy`: nor before the news of a busy fleet is old (`ASSIGNMENT_FLEET_BUSY_KEY`);
+    `with_reasons`: the run (this one or the one queued already) brings the waiting reasons up to date.
+    One round trip to Redis."""
+    expiry = tuning.ASSIGNMENT_MARKER_SECONDS + math.ceil(countdown)  # a busy fleet's wait is far shorter
+    marker = (ASSIGNMENT_MARKER_KEY, REASONS_ASKED if with_reasons else 1)
+    marked, since_last, busy_for, *_ = replies = livestate.round_trip(
         [
-            (
-                "SET",
-                ASSIGNMENT_MARKER_KEY,
-                1,
-                "NX",
-                "EX",
-                tuning.ASSIGNMENT_MARKER_SECONDS + math.ceil(countdown),
-            ),
+            ("SET", *marker, "NX", "EX", expiry),
             ("PTTL", ASSIGNMENT_RAN_KEY),
+            ("PTTL", ASSIGNMENT_FLEET_BUSY_KEY),
+            *([("SET", *marker, "XX", "KEEPTTL")] if with_reasons else []),  # the queued run's, if any
         ]
     )
-    for reply in (marked, since_last):
+    for reply in replies:
         if isinstance(reply, Exception):
             raise reply
     if marked is None:
         return
-    countdown = max(countdown, since_last / 1000)  # PTTL: -2 without the key
+    waits = [countdown, since_last / 1000, busy_for / 1000 if defer_while_busy else 0.0]  # PTTL: -2 if none
+    countdown = max(waits)
     try:
         app.send_task(
             ASSIGN_TASK,
@@ -103,11 +112,23 @@ def queue_assignment(*, countdown: float = 0.0) -> None:
         raise
 
 
-def assignment_run_started() -> None:
+def assignment_run_finished(*, idle_robots: int | None) -> None:
+    """Remember whether the run left a free robot idle (`ASSIGNMENT_FLEET_BUSY_KEY`); None: not known."""
+    if idle_robots == 0:
+        milliseconds = int(tuning.ASSIGNMENT_FLEET_BUSY_SECONDS * 1000)
+        livestate.round_trip([("SET", ASSIGNMENT_FLEET_BUSY_KEY, 1, "PX", milliseconds)])
+    else:
+        livestate.round_trip([("DEL", ASSIGNMENT_FLEET_BUSY_KEY)])
+
+
+def assignment_run_started() -> bool:
     """Let the next request queue a run (the run starting reads the missions afterwards), not to start
-    before `ASSIGNMENT_RUN_INTERVAL_SECONDS` from now."""
+    before `ASSIGNMENT_RUN_INTERVAL_SECONDS` from now; whether this run was asked for the reasons."""
     interval_ms = int(tuning.ASSIGNMENT_RUN_INTERVAL_SECONDS * 1000)
-    livestate.round_trip([("DEL", ASSIGNMENT_MARKER_KEY), ("SET", ASSIGNMENT_RAN_KEY, 1, "PX", interval_ms)])
+    marker, _ = livestate.round_trip(
+        [("GETDEL", ASSIGNMENT_MARKER_KEY), ("SET", ASSIGNMENT_RAN_KEY, 1, "PX", interval_ms)]
+    )
+    return marker == REASONS_ASKED.encode()
 
 
 def _send_step_task(names: list[str], at: float) -> None:
@@ -148,9 +169,18 @@ def queue_steps_soon(names: Iterable[str]) -> None:
     _sender.add(names, at=time.time())
 
 
-def queue_assignment_soon() -> None:
+def queue_assignment_soon(defer_while_busy: bool = False) -> None:
     """`queue_assignment` from this process's sender thread (as `queue_steps_soon`)."""
-    _sender.add((), at=time.time(), assignment=True)
+    wanted = Assignment.DEFERRED_WHILE_BUSY if defer_while_busy else Assignment.RUN
+    _sender.add((), at=time.time(), assignment=wanted)
+
+
+class Assignment(IntEnum):
+    """What a sender is asked of assignment; a stronger request covers a weaker one."""
+
+    NONE = 0
+    DEFERRED_WHILE_BUSY = 1  # `queue_assignment(defer_while_busy=True)`
+    RUN = 2
 
 
 class _StepSender:
@@ -159,16 +189,16 @@ class _StepSender:
 
     def __init__(self) -> None:
         self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
-        self._assignment = False  # an assignment run is asked for
+        self._assignment = Assignment.NONE
         self._at: float | None = None  # when the oldest of them was requested
         self._sending = False
         self._changed = threading.Condition()
         self._thread: threading.Thread | None = None
 
-    def add(self, names: Iterable[str], *, at: float, assignment: bool = False) -> None:
+    def add(self, names: Iterable[str], *, at: float, assignment: Assignment = Assignment.NONE) -> None:
         with self._changed:
             self._names.update(dict.fromkeys(names))
-            self._assignment = self._assignment or assignment
+            self._assignment = max(self._assignment, assignment)
             if not self._names and not self._assignment:
                 return
             self._at = at if self._at is None else min(self._at, at)
@@ -190,11 +220,11 @@ class _StepSender:
             with self._changed:
                 self._changed.wait_for(lambda: self._names or self._assignment)
                 names, at, assignment = list(self._names), self._at or time.time(), self._assignment
-                self._names, self._at, self._assignment, self._sending = {}, None, False, True
+                self._names, self._at, self._assignment, self._sending = {}, None, Assignment.NONE, True
             try:
                 queue_steps(names, at=at)
                 if assignment:
-                    queue_assignment()
+                    queue_assignment(defer_while_busy=assignment is Assignment.DEFERRED_WHILE_BUSY)
             except (redis.RedisError, kombu.exceptions.OperationalError, OSError) as error:
                 if not failing:
                     logger.warning(

@@ -20,6 +20,7 @@ from workers.long_lived import keep_trying, retry_delay, settle_long_lived_proce
 from workers.step_requests import (
     ASSIGN_TASK,
     STEP_TASK,
+    assignment_run_finished,
     assignment_run_started,
     queue_assignment,
     queue_steps,
@@ -57,16 +58,18 @@ _reasons_refreshed_at = -math.inf
 
 @shared_task(name=ASSIGN_TASK, ignore_result=True)
 def assign_missions() -> None:
-    """Bind unbound missions to free capable robots, with the waiting reasons once per
-    `ASSIGNMENT_CHECK_SECONDS` (a run that reads every robot); a burst still arriving is run again later.
-    The marker goes first: a request made during the run queues one more, which sees what this one may
-    have read too early."""
+    """Bind unbound missions to free capable robots, with the waiting reasons when beat asks (a run that
+    reads every robot) or this process has not brought them up to date for `ASSIGNMENT_CHECK_SECONDS`; a
+    burst still arriving is run again later. The marker goes first: a request made during the run queues
+    one more, which sees what this one may have read too early."""
     global _reasons_refreshed_at
-    assignment_run_started()
-    with_reasons = time.monotonic() - _reasons_refreshed_at >= settings.ASSIGNMENT_CHECK_SECONDS
+    reasons_asked = assignment_run_started()
+    since_refreshed = time.monotonic() - _reasons_refreshed_at
+    with_reasons = reasons_asked or since_refreshed >= settings.ASSIGNMENT_CHECK_SECONDS
     if with_reasons:
         _reasons_refreshed_at = time.monotonic()
     run = missions_assign(with_reasons=with_reasons)
+    assignment_run_finished(idle_robots=run.idle_robots)
     if run.hold is not None:
         queue_assignment(countdown=run.hold)
 
@@ -76,7 +79,7 @@ def assign_waiting() -> None:
     """Beat's safety net for assignment: a run while unbound missions wait, whatever wake-up was lost (or
     a robot became free in a way nothing asks a run for: charged, out of teleop, its error cleared)."""
     if mission_selectors.unbound_missions_wait():
-        queue_assignment()
+        queue_assignment(with_reasons=True)
 
 
 class NotifyFailedRetryably(Exception):

@@ -34,6 +34,10 @@ ASSIGNMENT_MARKER_SECONDS = 10
 # Assignment runs start at most this often: a run's fixed cost (a task, the free robots' read) paid per
 # mission posted would be most of an order's (issue 41), and a mission waits at most this much longer.
 ASSIGNMENT_RUN_INTERVAL_SECONDS = 0.1
+# A run that left no free robot idle says so for this long (step_requests.ASSIGNMENT_FLEET_BUSY_KEY): in a
+# busy fleet, new missions ask for about one run per this; a robot freed without asking for a run (its
+# battery reported charged, ...) waits no longer for a new mission.
+ASSIGNMENT_FLEET_BUSY_SECONDS = 1.0
 # A step request that could not be queued (Redis or the broker away) is tried again this often.
 UNQUEUED_RETRY_SECONDS = 1.0
 

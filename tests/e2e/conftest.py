@@ -189,8 +189,15 @@ class Recorder:
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=f"recorder-{uuid.uuid4().hex[:8]}"
         )
+        # This run's interface, and the one some tests give their robots as the AGVs they run use: not
+        # another run's on the same broker (a developer's suites side by side).
+        interfaces = sorted({settings.VDA5050_INTERFACE_NAME, "uagv"})
         self.client.on_connect = lambda c, *a: c.subscribe(
-            [("+/+/+/+/order", 0), ("+/+/+/+/instantActions", 0)]
+            [
+                (f"{interface}/+/+/+/{topic}", 0)
+                for interface in interfaces
+                for topic in ("order", "instantActions")
+            ]
         )
         self.client.on_message = self._on_message
         self.client.connect(settings.MQTT_HOST, settings.MQTT_PORT)

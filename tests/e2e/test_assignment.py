@@ -70,7 +70,8 @@ def test_labels_beat_distance(api, simulator, unique):
 def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, simulator, unique):
     (robot,) = robots_at(api, simulator, unique, ("only", 0))
     busy = unique("busy")
-    post_unbound(api, busy, [action("work", time=5, should_fail=0)])
+    # Busy long enough for beat's run to bring the reasons up to date (FLEET_ASSIGNMENT_CHECK_SECONDS).
+    post_unbound(api, busy, [action("work", time=8, should_fail=0)])
     assert bound_robot(api, busy) == robot
     started = wait_mission(api, busy, {"RUNNING", "COMPLETED", "FAILED", "CANCELED"})
     assert started["status"]["state"] == "RUNNING", started
@@ -126,7 +127,8 @@ def test_a_robot_that_goes_offline_before_taking_its_first_order_gives_the_missi
     near, far = unique("frozen"), unique("far")
     frozen = simulator(f"{near},0,0")
     simulator(f"{far},20,0")
-    create_robot(api, near, heartbeat_timeout=1)
+    # Online while the mission is held for a burst (FLEET_ASSIGNMENT_QUIET_SECONDS) and bound; then offline.
+    create_robot(api, near, heartbeat_timeout=2)
     create_robot(api, far)
     for name, x in ((near, 0), (far, 20)):
         wait_for(

@@ -41,3 +41,19 @@ def test_beat_asks_for_a_run_only_while_unbound_missions_wait(no_assignment_queu
         livestate.client().lrem(settings.STEP_QUEUE, 0, message)
     assign_waiting()
     assert len(_assignment_tasks()) == 1
+
+
+def test_a_run_says_whether_it_left_a_free_robot_idle(no_assignment_queued: None) -> None:  # noqa: F811
+    busy = step_requests.ASSIGNMENT_FLEET_BUSY_KEY
+    RobotFactory(name="r1", online=True, battery_level=80.0, last_state_at=timezone.now())
+    for name in ("m1", "m2"):
+        mission_create(actor=TEST_ACTOR, name=name, prefix=None, spec={"mission_tree": [ROUTE]})
+
+    assign_missions()
+    assert Mission.objects.exclude(robot=None).count() == 1
+    assert livestate.client().exists(busy)  # r1 took one: no robot idle, m2 waits for one to fall free
+
+    Mission.objects.filter(robot="r1").delete()
+    Mission.objects.filter(name="m2").delete()
+    assign_missions()
+    assert not livestate.client().exists(busy)  # r1 is idle again: a new mission asks for a run

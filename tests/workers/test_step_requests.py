@@ -115,7 +115,11 @@ def _assignment_tasks() -> list[bytes]:
 def no_assignment_queued() -> Iterator[None]:
     def clear() -> None:
         redis = livestate.client()
-        redis.delete(step_requests.ASSIGNMENT_MARKER_KEY, step_requests.ASSIGNMENT_RAN_KEY)
+        redis.delete(
+            step_requests.ASSIGNMENT_MARKER_KEY,
+            step_requests.ASSIGNMENT_RAN_KEY,
+            step_requests.ASSIGNMENT_FLEET_BUSY_KEY,
+        )
         for message in _assignment_tasks():
             redis.lrem(settings.STEP_QUEUE, 0, message)
 
@@ -177,3 +181,54 @@ def test_assignment_asked_soon_is_queued_by_the_sender_thread(no_assignment_queu
 
     assert step_requests.wait_until_queued(5.0)
     assert len(_assignment_tasks()) == 1
+
+
+def test_a_new_mission_in_a_busy_fleet_asks_for_its_run_once_the_news_is_old(
+    no_assignment_queued: None,
+) -> None:
+    step_requests.assignment_run_finished(idle_robots=0)
+    busy_for = livestate.client().pttl(step_requests.ASSIGNMENT_FLEET_BUSY_KEY) / 1000
+    assert 0 < busy_for <= step_requests.tuning.ASSIGNMENT_FLEET_BUSY_SECONDS
+    asked_at = datetime.now(UTC)
+    step_requests.queue_assignment(defer_while_busy=True)
+    eta = _eta(_assignment_tasks()[0])
+    assert eta is not None and eta > asked_at + timedelta(seconds=busy_for / 2)
+
+    step_requests.assignment_run_started()
+    livestate.client().delete(step_requests.ASSIGNMENT_RAN_KEY)
+    step_requests.queue_assignment()  # any other cause (a robot freed, changed, ...): at once
+    assert _eta(_assignment_tasks()[0]) is None
+
+
+@pytest.mark.parametrize("idle_robots", [2, None])
+def test_a_run_that_left_robots_idle_or_did_not_count_them_lets_new_missions_ask_at_once(
+    no_assignment_queued: None, idle_robots: int | None
+) -> None:
+    step_requests.assignment_run_finished(idle_robots=0)
+    step_requests.assignment_run_finished(idle_robots=idle_robots)
+
+    step_requests.queue_assignment(defer_while_busy=True)
+    assert _eta(_assignment_tasks()[0]) is None
+
+
+def test_the_sender_asks_for_one_run_whatever_mix_of_requests_came(no_assignment_queued: None) -> None:
+    step_requests.queue_assignment_soon(defer_while_busy=True)
+    step_requests.queue_assignment_soon()
+    step_requests.queue_assignment_soon(defer_while_busy=True)
+
+    assert step_requests.wait_until_queued(5.0)
+    assert len(_assignment_tasks()) == 1
+
+
+def test_a_run_asked_for_the_reasons_knows_it_even_when_a_plain_one_was_queued_first(
+    no_assignment_queued: None,
+) -> None:
+    step_requests.queue_assignment()
+    assert step_requests.assignment_run_started() is False
+
+    step_requests.queue_assignment()
+    step_requests.queue_assignment(with_reasons=True)  # beat's, while the plain one waits
+    assert len(_assignment_tasks()) == 2  # one per run started: the second request queued none
+    ttl = livestate.client().ttl(step_requests.ASSIGNMENT_MARKER_KEY)
+    assert 0 < ttl <= step_requests.tuning.ASSIGNMENT_MARKER_SECONDS  # its expiry kept
+    assert step_requests.assignment_run_started() is True
