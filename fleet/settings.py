@@ -91,6 +91,7 @@ INSTALLED_APPS = [
     "robots",
     "missions",
     "stations",
+    "zones",
     "changes",
     "workers",
     "agents",
