@@ -114,3 +114,12 @@ def _action(action: Mapping[str, Any]) -> dict[str, Any]:
 def _camel(snake: str) -> str:
     head, *rest = snake.split("_")
     return head + "".join(word.capitalize() for word in rest)
+
+
+class GrantType(StrEnum):
+    """The fleet control's answer to a zone request (the ``responses`` topic)."""
+
+    GRANTED = "GRANTED"
+    QUEUED = "QUEUED"
+    REVOKED = "REVOKED"
+    REJECTED = "REJECTED"
