@@ -213,6 +213,7 @@ SPECTACULAR_SETTINGS = {
         "MissionStateEnum": "missions.choices.MissionState",
         "SettingSourceEnum": "robots.choices.SettingSource",
         "AgvClassEnum": "robots.choices.AgvClass",
+        "MapStatusEnum": "vda5050.models.MapStatus",  # maps and zone sets: ENABLED, DISABLED
     },
 }
 

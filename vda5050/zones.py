@@ -11,6 +11,7 @@ from collections.abc import Iterable, Mapping
 from enum import StrEnum
 from typing import Any
 
+from vda5050.models import State
 from vda5050.versions import V3_0
 
 
@@ -71,6 +72,23 @@ ACTION_LISTS = ("entry_actions", "during_actions", "exit_actions")
 def has_zones(version: str) -> bool:
     """Zones came with 3.0.0."""
     return version == V3_0
+
+
+def reported_zone_sets(state: State) -> list[dict[str, str]]:
+    """The zone sets the robot holds (3.0 ``state.zoneSets``) as the fleet shows them, in its order."""
+    return [
+        {"map_id": z.map_id, "zone_set_id": z.zone_set_id, "zone_set_status": z.zone_set_status.value}
+        for z in state.zone_sets or ()
+    ]
+
+
+def supported_zones(factsheet: Mapping[str, Any] | None) -> list[str]:
+    """The zone types a robot's factsheet (as it sent it, 3.0 ``typeSpecification.supportedZones``) lists;
+    none for a robot without a factsheet or of 2.x (which knows no zones)."""
+    if not factsheet:
+        return []
+    zones = (factsheet.get("typeSpecification") or {}).get("supportedZones") or []
+    return [str(zone_type) for zone_type in zones] if isinstance(zones, list) else []
 
 
 def fields_of(zone_type: str) -> tuple[str, ...]:

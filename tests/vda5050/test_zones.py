@@ -5,7 +5,7 @@ import pytest
 
 from tests.vda5050.schemas import validate_message
 from tests.zones.bodies import ACTION, ZONES, zone
-from vda5050.zones import ZoneType, has_zones, zone_set_content
+from vda5050.zones import ZoneType, has_zones, supported_zones, zone_set_content
 
 HEADER = {
     "headerId": 0,
@@ -79,3 +79,13 @@ def test_an_empty_zone_set_is_valid_and_only_3_0_has_zones():
 @pytest.mark.parametrize("zone_type", list(ZoneType))
 def test_each_zone_type_of_the_schema_is_ours(zone_type):
     assert zone_type in ZONES
+
+
+def test_supported_zones_are_read_from_the_factsheet_as_sent():
+    assert supported_zones({"typeSpecification": {"supportedZones": ["RELEASE", "BLOCKED"]}}) == [
+        "RELEASE",
+        "BLOCKED",
+    ]
+    assert supported_zones({"typeSpecification": {"agvClass": "CARRIER"}}) == []  # 2.x
+    assert supported_zones({"typeSpecification": {"supportedZones": "RELEASE"}}) == []  # not a list
+    assert supported_zones(None) == supported_zones({}) == []
