@@ -18,6 +18,9 @@ The rules, in the order `decide` applies them:
   an earlier robot waits for is not given to a later one even if it has room, so no robot waits for ever
   behind a stream of later ones.
 - A zone admits `capacity` robots at once (1 unless the zone says more, our setting).
+- An operator may revoke a grant: a robot not yet in the zone loses it (and waits, without holding others
+  up, until the next decision queues it again); one already in it is answered REVOKED and holds the zone
+  until it has left.
 - A robot's horizon is how many of its route nodes its order's base may hold: through every leg whose
   zones it holds, never fewer than the nodes already released (a base is never taken back).
 """
@@ -94,15 +97,21 @@ class ZoneDecision:
 
 
 def decide(
-    *, zones: Iterable[Zone], robots: Iterable[RobotRoute], holders: Mapping[ZoneKey, Iterable[str]]
+    *,
+    zones: Iterable[Zone],
+    robots: Iterable[RobotRoute],
+    holders: Mapping[ZoneKey, Iterable[str]],
+    revoked: Iterable[tuple[str, ZoneKey]] = (),
 ) -> ZoneDecision:
     """Who holds which zone now, how far each robot may go and what 3.0 robots are answered; see the module
     docstring for the rules. `robots` are the robots that count (a robot left out, deleted or offline
-    past its heartbeat timeout, holds nothing any more)."""
+    past its heartbeat timeout, holds nothing any more; a 3.0 request whose lease EXPIRED is left out of
+    its requests). `revoked`: grants an operator takes back, (robot, zone)."""
     by_key = {zone.key: zone for zone in zones}
     routes = sorted(robots, key=lambda robot: (-robot.priority, robot.since, robot.robot))
     paths = {robot.robot: _Path.of(robot, by_key) for robot in routes}
-    held = _kept(holders, routes, paths, by_key)
+    revocations = frozenset(revoked)
+    held = _kept(holders, routes, paths, by_key, revocations)
     owned = _owned(held, routes)
 
     waiting: dict[str, frozenset[ZoneKey]] = {}
@@ -114,6 +123,9 @@ def decide(
             if request.key in by_key and request.key not in owned[robot.robot]
         }
         if not wanted:
+            continue
+        if any((robot.robot, key) in revocations for key in wanted):
+            waiting[robot.robot] = frozenset(wanted)  # not given back at once; it waits without blocking
             continue
         if wanted.isdisjoint(waited_for) and all(len(held[key]) < by_key[key].capacity for key in wanted):
             for key in sorted(wanted):
@@ -129,7 +141,10 @@ def decide(
         waiting=waiting,
         responses={
             robot.robot: tuple(
-                (request.request_id, _answer(request.key, owned[robot.robot], by_key))
+                (
+                    request.request_id,
+                    _answer(robot.robot, request.key, owned[robot.robot], by_key, revocations),
+                )
                 for request in robot.requests
             )
             for robot in routes
@@ -190,9 +205,10 @@ def _kept(
     routes: list[RobotRoute],
     paths: Mapping[str, _Path],
     zones: Mapping[ZoneKey, Zone],
+    revocations: frozenset[tuple[str, ZoneKey]],
 ) -> dict[ZoneKey, list[str]]:
-    """The grants that still stand, and a grant for every zone a robot is in or its released base crosses
-    (facts no decision undoes, whatever the capacity)."""
+    """The grants that still stand (not revoked), and a grant for every zone a robot is in or its released
+    base crosses (facts no decision or revocation undoes, whatever the capacity)."""
     previous: dict[str, set[ZoneKey]] = {robot.robot: set() for robot in routes}
     for key, names in holders.items():
         for name in names:
@@ -206,7 +222,7 @@ def _kept(
     held: dict[ZoneKey, list[str]] = {key: [] for key in zones}
     for key, names in holders.items():
         for name in dict.fromkeys(names):
-            if key in held and name in keep and key in keep[name]:
+            if key in held and name in keep and key in keep[name] and (name, key) not in revocations:
                 held[key].append(name)
     for robot in routes:
         for key in sorted(paths[robot.robot].forced()):
@@ -229,9 +245,17 @@ def _owned(held: Mapping[ZoneKey, list[str]], routes: list[RobotRoute]) -> dict[
     return owned
 
 
-def _answer(key: ZoneKey, owned: set[ZoneKey], zones: Mapping[ZoneKey, Zone]) -> GrantType:
+def _answer(
+    robot: str,
+    key: ZoneKey,
+    owned: set[ZoneKey],
+    zones: Mapping[ZoneKey, Zone],
+    revocations: frozenset[tuple[str, ZoneKey]],
+) -> GrantType:
     if key not in zones:
         return GrantType.REJECTED  # no RELEASE zone of that id in its map's enabled set
+    if (robot, key) in revocations:
+        return GrantType.REVOKED  # one inside still holds it until it has left (VDA 5050)
     return GrantType.GRANTED if key in owned else GrantType.QUEUED
 
 

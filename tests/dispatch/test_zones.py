@@ -389,3 +389,34 @@ def test_random_fleets_never_crowd_a_zone_and_all_arrive(shapes, walks, prioriti
     driving.run(60 * len(walks) * 17)
 
     assert driving.inside_together == []
+
+
+def test_a_revoked_grant_goes_to_the_next_robot_and_the_robot_is_told():
+    asking = robot("a", requests=(ZoneRequest("r1", MAP, "aisle"),))
+    granted = decide(zones=[AISLE], robots=[asking, robot("b", since=1.0)], holders={})
+
+    revoked = decide(
+        zones=[AISLE],
+        robots=[asking, robot("b", since=1.0)],
+        holders=granted.holders,
+        revoked=[("a", AISLE_KEY)],
+    )
+    later = decide(zones=[AISLE], robots=[asking, robot("b", since=1.0)], holders=revoked.holders)
+
+    assert granted.holders == {AISLE_KEY: ("a",)}
+    assert revoked.holders == {AISLE_KEY: ("b",)}
+    assert revoked.responses == {"a": (("r1", GrantType.REVOKED),)}
+    assert (revoked.horizons["a"], revoked.waiting["a"]) == (1, frozenset({AISLE_KEY}))
+    assert later.holders == {AISLE_KEY: ("b",)} and later.responses == {"a": (("r1", GrantType.QUEUED),)}
+
+
+def test_a_robot_inside_keeps_a_revoked_zone_until_it_has_left():
+    inside = robot("a", route=line(5.0), start=at(3.0, 0.0), requests=(ZoneRequest("r1", MAP, "aisle"),))
+
+    decision = decide(
+        zones=[AISLE], robots=[inside, robot("b")], holders={AISLE_KEY: ["a"]}, revoked=[("a", AISLE_KEY)]
+    )
+
+    assert decision.holders == {AISLE_KEY: ("a",)}
+    assert decision.responses == {"a": (("r1", GrantType.REVOKED),)}
+    assert decision.waiting == {"b": frozenset({AISLE_KEY})}
