@@ -31,7 +31,11 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from dispatch.polygons import Point, contains, segment_touches
+from vda5050.models import Request
 from vda5050.zones import GrantType
+
+ACCESS = "ACCESS"  # the zone request type this core answers (REPLANNING is COORDINATED_REPLANNING's)
+EXPIRED = "EXPIRED"  # a request whose lease ran out: it holds nothing any more
 
 ZoneKey = tuple[str, str]  # (map_id, zone_id): zone ids are unique within a map's zone set
 
@@ -257,6 +261,26 @@ def _answer(
     if (robot, key) in revocations:
         return GrantType.REVOKED  # one inside still holds it until it has left (VDA 5050)
     return GrantType.GRANTED if key in owned else GrantType.QUEUED
+
+
+def zone_requests(
+    requests: Iterable[Request], enabled: Mapping[str, str]
+) -> tuple[tuple[ZoneRequest, ...], tuple[str, ...]]:
+    """A 3.0 robot's state ``zoneRequests`` as the core takes them, and the requestIds to answer REJECTED at
+    once: another request type than ACCESS, or a zone set that is not its map's enabled one (`enabled`:
+    mapId -> zoneSetId). A request whose lease EXPIRED is left out: the robot holds nothing by it."""
+    maps = {zone_set_id: map_id for map_id, zone_set_id in enabled.items()}
+    taken: list[ZoneRequest] = []
+    rejected: list[str] = []
+    for request in requests:
+        if request.request_status == EXPIRED or request.zone_id is None:
+            continue
+        map_id = maps.get(request.zone_set_id or "")
+        if request.request_type != ACCESS or map_id is None:
+            rejected.append(request.request_id)
+        else:
+            taken.append(ZoneRequest(request.request_id, map_id, request.zone_id))
+    return tuple(taken), tuple(rejected)
 
 
 def zones_at(point: RoutePoint, zones: Iterable[Zone]) -> Iterable[ZoneKey]:

@@ -10,7 +10,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dispatch.zones import RobotRoute, RoutePoint, Zone, ZoneKey, ZoneRequest, decide, zones_at, zones_on
+from dispatch.zones import (
+    RobotRoute,
+    RoutePoint,
+    Zone,
+    ZoneKey,
+    ZoneRequest,
+    decide,
+    zone_requests,
+    zones_at,
+    zones_on,
+)
+from vda5050.models import Request
 from vda5050.zones import GrantType
 
 STALLED = 60  # ticks without a move: the robots are stuck
@@ -420,3 +431,23 @@ def test_a_robot_inside_keeps_a_revoked_zone_until_it_has_left():
     assert decision.holders == {AISLE_KEY: ("a",)}
     assert decision.responses == {"a": (("r1", GrantType.REVOKED),)}
     assert decision.waiting == {"b": frozenset({AISLE_KEY})}
+
+
+def test_a_3_0_robots_zone_requests_are_read_against_the_enabled_zone_sets():
+    def request(request_id: str, zone_set_id: str = "floor1-v2", **fields) -> Request:
+        values = {"request_type": "ACCESS", "request_status": "REQUESTED", "zone_id": "aisle", **fields}
+        return Request(request_id=request_id, zone_set_id=zone_set_id, **values)
+
+    taken, rejected = zone_requests(
+        [
+            request("r1"),
+            request("r2", request_status="GRANTED"),
+            request("r3", zone_set_id="floor1-v1"),  # an older set of the map
+            request("r4", request_type="REPLANNING"),
+            request("r5", request_status="EXPIRED"),
+        ],
+        {MAP: "floor1-v2", "yard": "yard-v1"},
+    )
+
+    assert taken == (ZoneRequest("r1", MAP, "aisle"), ZoneRequest("r2", MAP, "aisle"))
+    assert rejected == ("r3", "r4")
