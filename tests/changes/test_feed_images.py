@@ -28,7 +28,7 @@ ROBOT_UNSHOWN = UNSHOWN[Robot._meta.db_table][1]
 MISSION_UNSHOWN = UNSHOWN[Mission._meta.db_table][1]
 STATIONS_IN_FEED = importlib.import_module("changes.migrations.0005_stations")
 STATION_UNSHOWN = STATIONS_IN_FEED.UNSHOWN[Station._meta.db_table][1]
-ZONE_SETS_IN_FEED = importlib.import_module("changes.migrations.0007_zone_sets")
+ZONE_SETS_IN_FEED = importlib.import_module("changes.migrations.0008_zone_sets")
 ZONE_SET_UNSHOWN = ZONE_SETS_IN_FEED.UNSHOWN[ZoneSet._meta.db_table][1]
 
 

@@ -5,7 +5,7 @@ from django.db import migrations, models
 
 class Migration(migrations.Migration):
     dependencies = [
-        ("robots", "0007_robot_map_action"),
+        ("robots", "0008_robot_state_since_operating_mode"),
     ]
 
     operations = [

@@ -2,7 +2,6 @@
 only `updated_at`, as stations' does (0005)."""
 
 import importlib
-from collections.abc import Callable
 
 from django.db import migrations, models
 
@@ -13,23 +12,12 @@ TABLE = "zones_zoneset"
 UNSHOWN = {TABLE: ("zone_set", ("updated_at",))}
 
 
-def make_triggers(
-    table: str, kind: str, unshown: tuple[str, ...], leave_out: tuple[str, ...] = ()
-) -> Callable:
-    """A RunPython function that makes the table's feed triggers (again, if it has them), leaving `unshown`
-    out of the image and comparing every column but `leave_out` (those about to go, going back)."""
-
-    def make(apps, schema_editor) -> None:
-        connection = schema_editor.connection
-        with connection.cursor() as cursor:
-            cursor.execute("SELECT 1 FROM pg_trigger WHERE tgname = %s", [f"{table}_changes"])
-            if cursor.fetchone() is not None:
-                cursor.execute(images.initial._drop_triggers(table))
-            columns = [c.name for c in connection.introspection.get_table_description(cursor, table)]
-            shown = [column for column in columns if column not in leave_out]
-            cursor.execute(images.triggers_sql(table, kind, unshown, shown))
-
-    return make
+def _make_triggers(apps, schema_editor) -> None:
+    connection = schema_editor.connection
+    kind, unshown = UNSHOWN[TABLE]
+    with connection.cursor() as cursor:
+        columns = [c.name for c in connection.introspection.get_table_description(cursor, TABLE)]
+        cursor.execute(images.triggers_sql(TABLE, kind, unshown, columns))
 
 
 def _drop_triggers(apps, schema_editor) -> None:
@@ -39,7 +27,7 @@ def _drop_triggers(apps, schema_editor) -> None:
 
 class Migration(migrations.Migration):
     dependencies = [
-        ("changes", "0006_mission_assignment_shown"),
+        ("changes", "0007_robot_state_since_operating_mode_shown"),
         ("zones", "0001_initial"),
     ]
 
@@ -57,5 +45,5 @@ class Migration(migrations.Migration):
                 max_length=10,
             ),
         ),
-        migrations.RunPython(make_triggers(TABLE, *UNSHOWN[TABLE]), _drop_triggers),
+        migrations.RunPython(_make_triggers, _drop_triggers),
     ]
