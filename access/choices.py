@@ -38,3 +38,7 @@ class WriteAction(models.TextChoices):
     STATION_CREATE = "station_create"
     STATION_UPDATE = "station_update"
     STATION_DELETE = "station_delete"
+    ZONE_SET_CREATE = "zone_set_create"
+    ZONE_SET_ENABLE = "zone_set_enable"
+    ZONE_SET_DISABLE = "zone_set_disable"
+    ZONE_SET_DELETE = "zone_set_delete"

@@ -5,3 +5,4 @@ class ChangeKind(models.TextChoices):
     ROBOT = "robot"
     MISSION = "mission"
     STATION = "station"
+    ZONE_SET = "zone_set"

@@ -1,5 +1,5 @@
-"""GET /events: robots', missions' and stations' changes as server-sent events (README "Watching the
-fleet"). It shows several apps' objects, so it lives beside the URLconf; the stream itself is
+"""GET /events: robots', missions', stations' and zone sets' changes as server-sent events (README
+"Watching the fleet"). It shows several apps' objects, so it lives beside the URLconf; the stream itself is
 changes.views'."""
 
 from django.http import HttpResponse
@@ -11,6 +11,7 @@ from changes.views import AnyAccept, events_response
 from missions.api.views import MISSIONS
 from robots.api.views import ROBOTS
 from stations.api.views import STATIONS
+from zones.api.views import ZONE_SETS
 
 
 class EventsView(APIView):
@@ -20,4 +21,4 @@ class EventsView(APIView):
     # wait on it forever).
     @extend_schema(exclude=True)
     def get(self, request: Request) -> HttpResponse:
-        return events_response(request, [ROBOTS, MISSIONS, STATIONS])
+        return events_response(request, [ROBOTS, MISSIONS, STATIONS, ZONE_SETS])

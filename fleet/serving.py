@@ -7,7 +7,7 @@ from importlib import import_module
 from django.conf import settings
 
 # The streams' paths: requests that stay open for as long as the client reads (fleet.asgi).
-STREAM_PATHS = frozenset({"/robot/watch", "/mission/watch", "/station/watch", "/events"})
+STREAM_PATHS = frozenset({"/robot/watch", "/mission/watch", "/station/watch", "/zone_set/watch", "/events"})
 
 
 def api_process_start() -> None:

@@ -91,6 +91,7 @@ INSTALLED_APPS = [
     "robots",
     "missions",
     "stations",
+    "zones",
     "changes",
     "workers",
     "agents",
@@ -212,6 +213,7 @@ SPECTACULAR_SETTINGS = {
         "MissionStateEnum": "missions.choices.MissionState",
         "SettingSourceEnum": "robots.choices.SettingSource",
         "AgvClassEnum": "robots.choices.AgvClass",
+        "MapStatusEnum": "vda5050.models.MapStatus",  # maps and zone sets: ENABLED, DISABLED
     },
 }
 

@@ -19,4 +19,5 @@ urlpatterns = [
     path("", include("robots.api.urls")),
     path("", include("missions.api.urls")),
     path("", include("stations.api.urls")),
+    path("", include("zones.api.urls")),
 ]

@@ -98,6 +98,12 @@ class Robot(models.Model):
         help_text="The maps the robot reports (VDA 5050 2.1+ state.maps): map_id, map_version, map_status, "
         "map_description.",
     )
+    zone_sets = models.JSONField(
+        default=list,
+        blank=True,
+        help_text="The zone sets the robot reports (VDA 5050 3.0 state.zoneSets): map_id, zone_set_id, "
+        "zone_set_status.",
+    )
     last_state_at = models.DateTimeField(null=True, blank=True)
 
     created_at = models.DateTimeField(auto_now_add=True)

@@ -11,6 +11,7 @@ from missions.models import Mission
 from robots.models import Robot
 from stations.choices import StationKind
 from stations.models import Station
+from zones.models import ZoneSet
 
 # Who the tests' direct service calls are recorded as (WriteRecord.actor).
 TEST_ACTOR = "test"
@@ -34,6 +35,33 @@ class StationFactory(factory.django.DjangoModelFactory):
 
     name = factory.Sequence(lambda number: f"station{number:03d}")
     kind = StationKind.CHARGER
+
+
+class ZoneSetFactory(factory.django.DjangoModelFactory):
+    """A disabled zone set of map `map` with one RELEASE zone, a 2 m square at the origin."""
+
+    class Meta:
+        model = ZoneSet
+
+    name = factory.Sequence(lambda number: f"zones{number:03d}")
+    map_id = "map"
+    zones = factory.LazyFunction(
+        lambda: [
+            {
+                "zone_id": "square",
+                "zone_type": "RELEASE",
+                "description": "",
+                "vertices": [
+                    {"x": 0.0, "y": 0.0},
+                    {"x": 2.0, "y": 0.0},
+                    {"x": 2.0, "y": 2.0},
+                    {"x": 0.0, "y": 2.0},
+                ],
+                "release_loss_behavior": "STOP",
+                "capacity": 1,
+            }
+        ]
+    )
 
 
 def route_node(name: str, *waypoints: tuple[float, float], parent: str = "root") -> dict[str, Any]:

@@ -27,6 +27,7 @@ from robots.choices import (
 )
 from robots.models import Robot
 from vda5050.models import MapStatus
+from vda5050.zones import supported_zones
 
 
 def _model_default(field: str) -> Any:
@@ -189,6 +190,12 @@ class HardwareVersionSerializer(serializers.Serializer):
 class FactsheetSerializer(serializers.Serializer):
     agv_class = serializers.ChoiceField(choices=AgvClass.choices, help_text="From the robot's factsheet.")
     speed_max = serializers.FloatField(help_text="From the robot's factsheet; -1 until it has sent one.")
+    supported_zones = serializers.SerializerMethodField(
+        help_text="The zone types the robot's factsheet lists (VDA 5050 3.0 supportedZones); empty without."
+    )
+
+    def get_supported_zones(self, robot: Robot) -> list[str]:
+        return supported_zones(robot.factsheet)
 
 
 class RobotMapSerializer(serializers.Serializer):
@@ -200,6 +207,16 @@ class RobotMapSerializer(serializers.Serializer):
         choices=list(MapStatus), help_text="At most one version of a map_id is ENABLED."
     )
     map_description = serializers.CharField(allow_null=True)
+
+
+class RobotZoneSetSerializer(serializers.Serializer):
+    """A zone set the robot reports holding (VDA 5050 3.0 state.zoneSets)."""
+
+    map_id = serializers.CharField()
+    zone_set_id = serializers.CharField()
+    zone_set_status = serializers.ChoiceField(
+        choices=list(MapStatus), help_text="At most one zone set of a map_id is ENABLED."
+    )
 
 
 class MapActionSerializer(serializers.Serializer):
@@ -248,6 +265,9 @@ class RobotStatusSerializer(serializers.Serializer):
     errors = serializers.JSONField()
     maps = RobotMapSerializer(
         many=True, help_text="The maps the robot reports (VDA 5050 2.1+); empty if it reports none."
+    )
+    zone_sets = RobotZoneSetSerializer(
+        many=True, help_text="The zone sets the robot reports (VDA 5050 3.0); empty if it reports none."
     )
 
     @extend_schema_field(Pose2DSerializer)

@@ -17,7 +17,7 @@ from robots.models import Robot
 from stations.models import Station
 from tests.access.endpoints import PUBLIC_PATHS, Endpoint, endpoints
 from tests.conftest import authenticated_client
-from tests.factories import MissionFactory, RobotFactory, StationFactory
+from tests.factories import MissionFactory, RobotFactory, StationFactory, ZoneSetFactory
 
 pytestmark = pytest.mark.django_db
 
@@ -36,6 +36,7 @@ WRITE_BODIES = {
     "POST /robot/acc1/map": {"action": "enableMap", "map_id": "warehouse", "map_version": "1"},
     "POST /station": {"name": "acc2", "kind": "PARKING", "pose": {}},
     "PUT /station/acc1": {"kind": "PARKING", "pose": {}},
+    "POST /zone_set": {"name": "acc2", "map_id": "map", "zones": []},
 }
 WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 
@@ -45,6 +46,7 @@ def objects() -> None:
     RobotFactory(name=NAME, protocol_version="2.1.0")  # a robot with maps
     MissionFactory(name=NAME, robot=NAME)
     StationFactory(name=NAME)
+    ZoneSetFactory(name=NAME)
 
 
 def answered(endpoint: Endpoint) -> int:
@@ -88,6 +90,13 @@ def test_the_walk_finds_every_endpoint_of_the_reference_and_ours():
         "PUT /station/acc1",
         "DELETE /station/acc1",
         "GET /station/watch",
+        "GET /zone_set",
+        "POST /zone_set",
+        "GET /zone_set/acc1",
+        "DELETE /zone_set/acc1",
+        "POST /zone_set/acc1/enable",
+        "POST /zone_set/acc1/disable",
+        "GET /zone_set/watch",
     }
     assert {endpoint.path for endpoint in PUBLIC} == PUBLIC_PATHS
 

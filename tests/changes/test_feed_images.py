@@ -16,9 +16,10 @@ from missions.robot_step import robot_step
 from missions.services import mission_orders_accepted
 from robots.models import Robot
 from stations.models import Station
-from tests.factories import StationFactory
+from tests.factories import StationFactory, ZoneSetFactory
 from tests.missions.test_robot_step import create, put_state
 from vda5050.models import OrderContent
+from zones.models import ZoneSet
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -27,6 +28,8 @@ ROBOT_UNSHOWN = UNSHOWN[Robot._meta.db_table][1]
 MISSION_UNSHOWN = UNSHOWN[Mission._meta.db_table][1]
 STATIONS_IN_FEED = importlib.import_module("changes.migrations.0005_stations")
 STATION_UNSHOWN = STATIONS_IN_FEED.UNSHOWN[Station._meta.db_table][1]
+ZONE_SETS_IN_FEED = importlib.import_module("changes.migrations.0008_zone_sets")
+ZONE_SET_UNSHOWN = ZONE_SETS_IN_FEED.UNSHOWN[ZoneSet._meta.db_table][1]
 
 
 def images(kind: str, name: str) -> list[dict]:
@@ -98,10 +101,12 @@ def test_every_column_is_unshown_or_compared_by_the_update_trigger(robot: Robot)
     create("m1", robot)
     robot_step(name=robot.name)
     StationFactory(name="s1")
+    ZoneSetFactory(name="z1")
     for model, kind, name, unshown in (
         (Robot, ChangeKind.ROBOT, robot.name, ROBOT_UNSHOWN),
         (Mission, ChangeKind.MISSION, "m1", MISSION_UNSHOWN),
         (Station, ChangeKind.STATION, "s1", STATION_UNSHOWN),
+        (ZoneSet, ChangeKind.ZONE_SET, "z1", ZONE_SET_UNSHOWN),
     ):
         table = model._meta.db_table
         with connection.cursor() as cursor:

@@ -15,6 +15,8 @@ from kit.api.names import OBJECT_NAME_MAX_LENGTH
 from missions.tuning import MAX_NOTIFY_TIMEOUT
 from stations.models import MAX_CAPACITY
 from tests.readme import README_MISSIONS, README_ROBOT, UNBOUND_MISSION_EXAMPLE
+from zones.models import MAX_CAPACITY as MAX_ZONE_CAPACITY
+from zones.models import MAX_VERTICES, MAX_ZONES
 
 ENDPOINTS = {
     "/robot": {"get", "post"},
@@ -27,6 +29,10 @@ ENDPOINTS = {
     "/mission/{name}/update": {"post"},
     "/station": {"get", "post"},
     "/station/{name}": {"get", "put", "delete"},
+    "/zone_set": {"get", "post"},
+    "/zone_set/{name}": {"get", "delete"},
+    "/zone_set/{name}/enable": {"post"},
+    "/zone_set/{name}/disable": {"post"},
     "/health": {"get"},
     "/behaviors": {"get"},
 }
@@ -41,6 +47,7 @@ ROBOT_FILTERS = {
 }
 MISSION_FILTERS = {"state", "started_after", "started_before", "robot", "unbound", "most_recent"}
 STATION_FILTERS = {"kind", "map_id", "robot_type", "names"}
+ZONE_SET_FILTERS = {"map_id", "enabled", "names"}
 
 
 @pytest.fixture(scope="module")
@@ -215,7 +222,6 @@ def test_the_schema_states_the_limits(schema):
     assert (names["items"]["minLength"], names["items"]["pattern"]) == (1, "^[^\\u0000]*$")
 
 
-
 def test_the_station_filters_and_limits_are_documented(schema):
     filters = query_parameters(schema["paths"]["/station"]["get"])
     station = schema["components"]["schemas"]["StationCreateRequest"]["properties"]
@@ -226,6 +232,32 @@ def test_the_station_filters_and_limits_are_documented(schema):
     assert set(filters["kind"]["schema"]["enum"]) == {"CHARGER", "PARKING"}
     assert (station["capacity"]["minimum"], station["capacity"]["maximum"]) == (1, MAX_CAPACITY)
     assert "#/components/schemas/PoseRequest" in json.dumps(station["pose"])
+
+
+def test_the_zone_set_filters_zone_types_and_limits_are_documented(schema):
+    filters = query_parameters(schema["paths"]["/zone_set"]["get"])
+    components = schema["components"]["schemas"]
+    zone_set = components["ZoneSetCreateRequest"]["properties"]
+    zone = components["ZoneRequest"]["properties"]
+
+    assert set(filters) == ZONE_SET_FILTERS
+    assert all(parameter.get("description") for parameter in filters.values())
+    assert zone_set["zones"]["maxItems"] == MAX_ZONES
+    assert (zone["vertices"]["minItems"], zone["vertices"]["maxItems"]) == (3, MAX_VERTICES)
+    assert (zone["capacity"]["minimum"], zone["capacity"]["maximum"]) == (1, MAX_ZONE_CAPACITY)
+    assert set(components["ZoneTypeEnum"]["enum"]) == {
+        "BLOCKED",
+        "LINE_GUIDED",
+        "RELEASE",
+        "COORDINATED_REPLANNING",
+        "SPEED_LIMIT",
+        "ACTION",
+        "PRIORITY",
+        "PENALTY",
+        "DIRECTED",
+        "BIDIRECTED",
+    }
+    assert "put" not in schema["paths"]["/zone_set/{name}"]
 
 
 PUBLIC_OPERATIONS = {("/health", "get")}

@@ -25,6 +25,7 @@ from robots.status import robot_status_write
 from vda5050.codec import nested_deeper
 from vda5050.maps import reported_maps
 from vda5050.models import State
+from vda5050.zones import reported_zone_sets
 from workers import metrics, tuning
 from workers.bridge.gate import holds_nul
 
@@ -42,8 +43,9 @@ STATUS_COLUMNS = (
     "errors",
     "info_messages",
     "maps",
+    "zone_sets",
 )
-JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages", "maps"})
+JSON_COLUMNS = frozenset({"hardware_version", "errors", "info_messages", "maps", "zone_sets"})
 
 
 @dataclass
@@ -102,6 +104,7 @@ class StatusWriter:
             },
             "info_messages": _user_info(state),
             "maps": reported_maps(state),
+            "zone_sets": reported_zone_sets(state),
         }
         if position is not None:
             values.update(

@@ -46,7 +46,7 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "position_initialized": False,
             "software_version": {"os": "", "app": ""},
             "hardware_version": {"manufacturer": "", "serial_number": ""},
-            "factsheet": {"agv_class": "CARRIER", "speed_max": -1.0},
+            "factsheet": {"agv_class": "CARRIER", "speed_max": -1.0, "supported_zones": []},
             "online": False,
             "battery_level": 0.0,
             "state": "IDLE",
@@ -55,6 +55,7 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "info_messages": None,
             "errors": {},
             "maps": [],
+            "zone_sets": [],
         },
         "lifecycle": "ALIVE",
     }

@@ -28,6 +28,8 @@ def test_returns_the_robot_with_its_status(api):
         info_messages={"info": "charging soon"},
         position_initialized=True,
         maps=[{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
+        zone_sets=[{"map_id": "map", "zone_set_id": "floor1-v1", "zone_set_status": "ENABLED"}],
+        factsheet={"typeSpecification": {"supportedZones": ["RELEASE", "BLOCKED"]}},
     )
 
     response = api.get("/robot/carter01")
@@ -45,7 +47,7 @@ def test_returns_the_robot_with_its_status(api):
         "position_initialized": True,
         "software_version": {"os": "linux", "app": ""},
         "hardware_version": {"manufacturer": "RobotCompany", "serial_number": "carter01"},
-        "factsheet": {"agv_class": "FORKLIFT", "speed_max": 1.5},
+        "factsheet": {"agv_class": "FORKLIFT", "speed_max": 1.5, "supported_zones": ["RELEASE", "BLOCKED"]},
         "online": True,
         "battery_level": 42.0,
         "state": "ON_TASK",
@@ -54,6 +56,7 @@ def test_returns_the_robot_with_its_status(api):
         "info_messages": {"info": "charging soon"},
         "errors": {},
         "maps": [{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
+        "zone_sets": [{"map_id": "map", "zone_set_id": "floor1-v1", "zone_set_status": "ENABLED"}],
     }
 
 

@@ -19,7 +19,7 @@ from tests.factories import TEST_ACTOR
 from tests.missions.test_robot_step import instant_actions, put_state, step
 from tests.workers.bridge.messages import T0, step_requested
 from vda5050.codec import encode, header_for
-from vda5050.models import ActionStatus, Map, MapStatus
+from vda5050.models import ActionStatus, Map, MapStatus, ZoneSetState
 from vda5050.topics import RobotAddress
 from workers.bridge.loop import Bridge
 
@@ -128,3 +128,28 @@ def test_a_mission_on_a_map_not_enabled_waits_and_starts_once_it_is(make_robot: 
     step(robot, after=1)
     started = Mission.objects.get(name=f"{robot.name}-m")
     assert (started.state, started.waiting_reason) == ("RUNNING", None)
+
+
+def test_reported_zone_sets_reach_the_row_on_flush(bridge: Bridge, make_robot: MakeRobot) -> None:
+    """3.0 robots report the zone sets they hold (state.zoneSets), coalesced as maps are."""
+    robot = make_robot(vda5050={"version": "3.0.0"})
+    bridge.directory.reload()
+    content = robot_state().model_copy(
+        update={
+            "zone_sets": [
+                ZoneSetState(map_id="hall", zone_set_id="hall-v2", zone_set_status=MapStatus.ENABLED),
+                ZoneSetState(map_id="hall", zone_set_id="hall-v1", zone_set_status=MapStatus.DISABLED),
+            ]
+        }
+    )
+    header = header_for(
+        RobotAddress("uagv", "RobotCompany", robot.serial_number, "3.0.0"), header_id=1, at=T0
+    )
+
+    bridge.handle([(f"uagv/v3/RobotCompany/{robot.serial_number}/state", encode(content, header))])
+    bridge.status_writer.flush()
+
+    assert Robot.objects.get(name=robot.name).zone_sets == [
+        {"map_id": "hall", "zone_set_id": "hall-v2", "zone_set_status": "ENABLED"},
+        {"map_id": "hall", "zone_set_id": "hall-v1", "zone_set_status": "DISABLED"},
+    ]

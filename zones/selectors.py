@@ -1,0 +1,24 @@
+"""Reads of zone sets."""
+
+from collections.abc import Mapping
+from typing import Any
+
+from django.db.models import QuerySet
+
+from kit.api.errors import QueryValidationError
+from kit.api.rows import object_get
+from zones.filters import ZoneSetFilter
+from zones.models import ZoneSet
+
+
+def zone_set_get(*, name: str, to_change: bool = False) -> ZoneSet:
+    """The zone set called `name`; a missing one is the reference's 400 (DELETE wording if `to_change`)."""
+    return object_get(ZoneSet.objects.all(), alias="zone_set", name=name, to_change=to_change)
+
+
+def zone_set_list(*, filters: Mapping[str, Any] | None = None) -> QuerySet[ZoneSet]:
+    """Zone sets by name, narrowed by the GET /zone_set query filters (see ZoneSetFilter)."""
+    filterset = ZoneSetFilter(data=filters or {}, queryset=ZoneSet.objects.order_by("name"))
+    if not filterset.is_valid():
+        raise QueryValidationError.from_form_errors(filterset.errors)
+    return filterset.qs

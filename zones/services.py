@@ -1,0 +1,78 @@
+"""Changes to zone sets, each in one transaction with its write record. A zone set's content is immutable
+(VDA 5050: per zoneSetId); what changes is which set of its map is enabled, at most one."""
+
+from collections.abc import Mapping
+from typing import Any
+
+from django.db import IntegrityError, transaction
+
+from access.choices import WriteAction
+from access.services import write_record
+from kit.api.errors import ObjectError, UsageError
+from kit.api.names import object_name_for_create
+from kit.api.rows import lock_row
+from zones.models import ZoneSet
+
+
+def zone_set_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> ZoneSet:
+    """A new, disabled zone set from a spec in the API's shape (ZoneSetSpecSerializer's validated data).
+    Without a name it is named `<prefix>-<random id>` or a random id; a duplicate name raises the
+    reference's ObjectError."""
+    zone_set_name = object_name_for_create(name=name, prefix=prefix, what="Zone set name")
+    zone_set = ZoneSet(
+        name=zone_set_name,
+        map_id=spec["map_id"],
+        description=spec["description"],
+        zones=[dict(zone) for zone in spec["zones"]],
+    )
+    try:
+        with transaction.atomic():
+            zone_set.save(force_insert=True)
+            write_record(actor=actor, action=WriteAction.ZONE_SET_CREATE, object_name=zone_set.name)
+    except IntegrityError as error:
+        raise ObjectError.exists("zone_set", zone_set_name) from error
+    return zone_set
+
+
+def zone_set_enable(*, actor: str, zone_set: ZoneSet) -> ZoneSet:
+    """Make the zone set its map's enabled one; the set enabled before on that map is disabled in the same
+    transaction. The map's sets are locked in name order, so concurrent enables of one map take turns."""
+    with transaction.atomic():
+        map_sets = list(ZoneSet.objects.select_for_update().filter(map_id=zone_set.map_id).order_by("name"))
+        locked = next((each for each in map_sets if each.name == zone_set.name), None)
+        if locked is None:
+            raise ObjectError.not_found_to_change(zone_set.name)
+        for other in map_sets:
+            if other.enabled and other.name != locked.name:
+                other.enabled = False
+                other.save(update_fields=["enabled", "updated_at"])
+        if not locked.enabled:
+            locked.enabled = True
+            locked.save(update_fields=["enabled", "updated_at"])
+        write_record(actor=actor, action=WriteAction.ZONE_SET_ENABLE, object_name=locked.name)
+    return locked
+
+
+def zone_set_disable(*, actor: str, zone_set: ZoneSet) -> ZoneSet:
+    """Disable the zone set: its map then has no zones until another set is enabled."""
+    with transaction.atomic():
+        locked = lock_row(zone_set)
+        if locked.enabled:
+            locked.enabled = False
+            locked.save(update_fields=["enabled", "updated_at"])
+        write_record(actor=actor, action=WriteAction.ZONE_SET_DISABLE, object_name=locked.name)
+    return locked
+
+
+def zone_set_delete(*, actor: str, zone_set: ZoneSet) -> None:
+    """Delete a disabled zone set; the enabled one of a map is refused (its map would lose its zones
+    unnoticed: enable another set or disable it first)."""
+    with transaction.atomic():
+        locked = lock_row(zone_set)
+        if locked.enabled:
+            raise UsageError(
+                f"Zone set {locked.name} is enabled on map {locked.map_id}: disable it or enable another set "
+                "of the map before deleting it."
+            )
+        write_record(actor=actor, action=WriteAction.ZONE_SET_DELETE, object_name=locked.name)
+        locked.delete()
