@@ -36,6 +36,7 @@ from missions.rows import (
     mission_columns,
     mission_db_values,
     mission_row_delete,
+    robot_busy_sql,
 )
 from missions.selectors import assignment_inputs, claim_inputs
 from missions.tuning import CLAIM_PAGE
@@ -357,12 +358,7 @@ BIND_SQL = f"""
         )
     FROM unnest(%s::varchar[], %s::varchar[]) AS b(name, robot)
     WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
-      AND NOT EXISTS (
-        SELECT 1 FROM {Mission._meta.db_table} o
-        WHERE o.robot = b.robot AND (
-            o.state = '{MissionState.RUNNING}' OR o.state = '{MissionState.PENDING}' AND o.assignment <> '[]'
-        )
-      )
+      AND NOT {robot_busy_sql("b.robot")}
     RETURNING m.name, m.robot
 """
 # An unbound mission still queued at its deadline never starts, as one of a robot's queue (the step's
