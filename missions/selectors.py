@@ -245,11 +245,11 @@ def assignment_inputs(*, free_only: bool) -> AssignmentInputs:
 def claim_inputs(*, robot: str, created_before: datetime, limit: int) -> AssignmentInputs:
     """The robot `robot` and the first `limit` unbound missions created before `created_before`, highest
     priority and oldest first: what a robot that just fell free chooses its next mission from."""
-    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
-    if not robots:
-        return AssignmentInputs([], [], {})
     missions, waiting_reasons = _unbound_missions(created_before=created_before, limit=limit)
-    return AssignmentInputs(missions, robots, waiting_reasons)
+    if not missions:  # the pool is empty (a fleet of named missions): the robot is not read
+        return AssignmentInputs([], [], {})
+    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
+    return AssignmentInputs(missions if robots else [], robots, waiting_reasons)
 
 
 def _candidate_robots(sql: str, params: list[Any]) -> list[CandidateRobot]:
