@@ -6,6 +6,7 @@ hand back what to publish.
 """
 
 import logging
+import threading
 from dataclasses import dataclass, field, fields, replace
 from datetime import UTC, datetime, timedelta
 from enum import Enum, auto
@@ -167,13 +168,11 @@ def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> b
         if end is not StepEnd.QUEUE_RAN_DRY:
             return False
         queue_grew, unbound_wait = queue_cursor.fetchone()
-        if queue_grew:
-            return True
-        if unbound_wait:  # the robot is free: an unbound mission may be its
-            if mission_claim(robot=name) is not None:
-                return True  # the next transaction starts it
-            request_assignment()
-        return False
+        if unbound_wait:
+            _unbound_seen.set()
+        if not queue_grew and unbound_wait:
+            request_assignment()  # the robot is free: an unbound mission it could not claim may be its
+        return queue_grew
 
 
 @dataclass
@@ -240,6 +239,12 @@ def _maybe_unsent(wire: _RobotWire) -> list[dict[str, Any]]:
         return [e for e in wire.outbox if e["header_id"] > wire.published.get(e["topic"], -1)]
     newest = {entry["topic"]: entry for entry in wire.outbox}  # the outbox is in headerId order per topic
     return [entry for entry in wire.outbox if newest[entry["topic"]] is entry]
+
+
+# Whether this process's steps lately saw unbound missions waiting: only then does a step that ends a robot's
+# last mission try to claim one in its transaction (`mission_claim`), so that a fleet of named missions pays
+# no round trip for it. The look at the queue after such a step's commit sets it again.
+_unbound_seen = threading.Event()
 
 
 class StepEnd(Enum):
@@ -350,6 +355,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             break
         ended_a_mission = True
         upcoming = upcoming or _current_missions(name, count=2)
+        if not upcoming and _unbound_seen.is_set():  # its next may be an unbound one
+            if mission_claim(robot=name) is not None:
+                upcoming = _current_missions(name, count=2)
+            else:
+                _unbound_seen.clear()  # until the look at the queue after the commit sees some again
     if view.state != robot_state:
         changed_at = timezone.now()
         Robot.objects.filter(name=name).update(

@@ -54,6 +54,20 @@ def mission_row_delete(name: str) -> None:
         cursor.execute(MISSION_DELETE_SQL, [name])
 
 
+def robot_busy_sql(robot: str) -> str:
+    """EXISTS: the robot (an SQL expression) has a running mission, or one assignment bound to it that has
+    not started yet. The state list lets mission_queue_idx find the robot's live missions alone, not
+    its whole history."""
+    return f"""
+        EXISTS (
+            SELECT 1 FROM {Mission._meta.db_table} busy
+            WHERE busy.robot = {robot}
+              AND busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
+              AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
+        )
+    """
+
+
 def binding_time(at: datetime) -> str:
     """A time in a mission's assignment record, as the API writes times."""
     return at.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")

@@ -21,6 +21,7 @@ from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from missions.filters import MissionFilter
 from missions.models import Mission
+from missions.rows import robot_busy_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
@@ -188,15 +189,7 @@ _MAY_WORK_SQL = f"""
         WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
     )
 """
-# It has a running mission or one assignment bound to it that has not started yet.
-_BUSY_SQL = f"""
-    EXISTS (
-        SELECT 1 FROM {Mission._meta.db_table} m
-        WHERE m.robot = r.name AND (
-            m.state = '{MissionState.RUNNING}' OR m.state = '{MissionState.PENDING}' AND m.assignment <> '[]'
-        )
-    )
-"""
+_BUSY_SQL = robot_busy_sql("r.name")
 # Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
 # found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
 CANDIDATE_ROBOTS_SQL = f"""
@@ -252,11 +245,11 @@ def assignment_inputs(*, free_only: bool) -> AssignmentInputs:
 def claim_inputs(*, robot: str, created_before: datetime, limit: int) -> AssignmentInputs:
     """The robot `robot` and the first `limit` unbound missions created before `created_before`, highest
     priority and oldest first: what a robot that just fell free chooses its next mission from."""
-    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
-    if not robots:
-        return AssignmentInputs([], [], {})
     missions, waiting_reasons = _unbound_missions(created_before=created_before, limit=limit)
-    return AssignmentInputs(missions, robots, waiting_reasons)
+    if not missions:  # the pool is empty (a fleet of named missions): the robot is not read
+        return AssignmentInputs([], [], {})
+    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
+    return AssignmentInputs(missions if robots else [], robots, waiting_reasons)
 
 
 def _candidate_robots(sql: str, params: list[Any]) -> list[CandidateRobot]:

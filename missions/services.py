@@ -36,6 +36,7 @@ from missions.rows import (
     mission_columns,
     mission_db_values,
     mission_row_delete,
+    robot_busy_sql,
 )
 from missions.selectors import assignment_inputs, claim_inputs
 from missions.tuning import CLAIM_PAGE
@@ -357,12 +358,7 @@ BIND_SQL = f"""
         )
     FROM unnest(%s::varchar[], %s::varchar[]) AS b(name, robot)
     WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
-      AND NOT EXISTS (
-        SELECT 1 FROM {Mission._meta.db_table} o
-        WHERE o.robot = b.robot AND (
-            o.state = '{MissionState.RUNNING}' OR o.state = '{MissionState.PENDING}' AND o.assignment <> '[]'
-        )
-      )
+      AND NOT {robot_busy_sql("b.robot")}
     RETURNING m.name, m.robot
 """
 # An unbound mission still queued at its deadline never starts, as one of a robot's queue (the step's
@@ -438,13 +434,14 @@ def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
 def mission_claim(*, robot: str) -> str | None:
     """The robot, just fallen free, takes its next mission from the unbound ones at once, by assignment's
     rules for it alone (the oldest of the highest priority it can do, unless its own queue comes first);
-    returns the mission bound, if any.
+    returns the mission bound, if any. In the caller's transaction: the step's that ended the robot's last
+    mission, which then starts this one (nothing else is asked to step it).
 
     In a busy fleet robots fall free one at a time while missions wait: the robot is then the only free
-    one, and binding it in its own step spares a run and a step (issue 41's steady state). Robots that
-    fall free together take different missions (each its best one that no other claim holds). Missions younger
-    than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them for a burst, and so is a
-    robot that none of the `CLAIM_PAGE` first missions suits (the run reads them all).
+    one, and binding it in its own step spares a run, a step and a transaction (issue 41's steady state).
+    Robots that fall free together take different missions (each its best one no other claim holds).
+    Missions younger than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them for a
+    burst, and so is a robot that none of the `CLAIM_PAGE` first missions suits (the run reads them all).
     """
     now = timezone.now()
     inputs = claim_inputs(
@@ -457,18 +454,18 @@ def mission_claim(*, robot: str) -> str | None:
     choices = choices_of(inputs.robots[0], inputs.missions)
     if not choices:
         return None
-    with transaction.atomic(), connection.cursor() as cursor:
+    with connection.cursor() as cursor:
         # The best choice no other claim holds: robots falling free together take different missions.
         cursor.execute(LOCK_FIRST_UNBOUND_SQL, [choices, choices])
         row = cursor.fetchone()
-        bound = _bind({row[0]: robot}, now) if row else {}
+    bound = _bind({row[0]: robot}, now, step=False) if row else {}
     return next(iter(bound), None)
 
 
-def _bind(bindings: dict[str, str], now: datetime) -> dict[str, str]:
+def _bind(bindings: dict[str, str], now: datetime, *, step: bool = True) -> dict[str, str]:
     """Bind what `bindings` asks (mission -> robot) where the robot and mission are still free and no other
     transaction holds them (SKIP LOCKED: runs never wait for each other, nor deadlock, nor wait for a step);
-    the robots bound are stepped once this commits. Returns the bindings made."""
+    the robots bound are stepped once this commits (`step`). Returns the bindings made."""
     if not bindings:
         return {}
     with connection.cursor() as cursor:
@@ -480,6 +477,6 @@ def _bind(bindings: dict[str, str], now: datetime) -> dict[str, str]:
             return {}
         cursor.execute(BIND_SQL, [now, binding_time(now), missions, [bindings[name] for name in missions]])
         bound = dict(cursor.fetchall())
-    if bound:
+    if bound and step:
         request_steps(sorted(set(bound.values())))
     return bound

@@ -7,11 +7,12 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
-from django.db import connection
+from django.db import connection, transaction
 from django.utils import timezone
 from pytest_django.fixtures import Settings
 
 from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE, NOT_YET_ASSIGNED
+from missions import robot_step as robot_step_module
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import robot_step
@@ -205,6 +206,12 @@ def test_an_unbound_mission_past_its_deadline_fails_and_is_never_bound() -> None
     assert mission.node_status["root"]["state"] == MissionState.FAILED
 
 
+def claim(robot: str) -> str | None:
+    """`mission_claim` in a transaction of its own, as the step that calls it has one."""
+    with transaction.atomic():
+        return mission_claim(robot=robot)
+
+
 def created_ago(name: str, seconds: float) -> None:
     Mission.objects.filter(name=name).update(created_at=timezone.now() - timedelta(seconds=seconds))
 
@@ -275,10 +282,10 @@ def test_a_robot_fallen_free_claims_the_oldest_of_the_highest_priority_it_can_do
     for name in ("old", "urgent_lift", "urgent_other"):
         created_ago(name, 1.0)
 
-    assert mission_claim(robot="r1") == "urgent_lift"
+    assert claim("r1") == "urgent_lift"
     assert robot_of("urgent_lift") == "r1"
     assert Mission.objects.get(name="urgent_lift").assignment[-1]["robot"] == "r1"
-    assert mission_claim(robot="r1") is None  # it has a mission bound now: not free
+    assert claim("r1") is None  # it has a mission bound now: not free
 
 
 def test_a_claim_leaves_missions_younger_than_the_quiet_time_to_the_run(settings: Settings) -> None:
@@ -286,9 +293,9 @@ def test_a_claim_leaves_missions_younger_than_the_quiet_time_to_the_run(settings
     robot("r1")
     unbound("fresh")
 
-    assert mission_claim(robot="r1") is None
+    assert claim("r1") is None
     created_ago("fresh", 6.0)
-    assert mission_claim(robot="r1") == "fresh"
+    assert claim("r1") == "fresh"
 
 
 def test_a_robot_that_may_not_work_claims_nothing() -> None:
@@ -297,9 +304,9 @@ def test_a_robot_that_may_not_work_claims_nothing() -> None:
     unbound("m1")
     created_ago("m1", 1.0)
 
-    assert mission_claim(robot="manual") is None
-    assert mission_claim(robot="low") is None
-    assert mission_claim(robot="ghost") is None
+    assert claim("manual") is None
+    assert claim("low") is None
+    assert claim("ghost") is None
     assert robot_of("m1") is None
 
 
@@ -322,7 +329,16 @@ def test_equally_near_robots_go_to_the_longest_idle() -> None:
     assert missions_assign().bound == {"m1": "longest"}
 
 
-def test_a_robot_that_ends_its_last_mission_starts_an_unbound_one_in_the_same_step(make_robot) -> None:
+@pytest.mark.parametrize("seen_before", [True, False], ids=["unbound_seen", "first_seen"])
+def test_a_robot_that_ends_its_last_mission_starts_an_unbound_one_in_the_same_step(
+    make_robot, seen_before: bool
+) -> None:
+    """Once its process has seen unbound missions (a step's look at the queue after its commit): the
+    first step to see them leaves the mission to the run it asks for."""
+    if seen_before:
+        robot_step_module._unbound_seen.set()
+    else:
+        robot_step_module._unbound_seen.clear()
     created = make_robot(prefix="claim")
     Robot.objects.filter(name=created.name).update(
         online=True, battery_level=80.0, last_state_at=timezone.now()
@@ -338,8 +354,12 @@ def test_a_robot_that_ends_its_last_mission_starts_an_unbound_one_in_the_same_st
     outcome = robot_step(name=created.name)
 
     assert [mission.name for mission in outcome.finished] == ["own"]
-    assert [order.order_id for order in orders(outcome)] == ["next-n0-r0"]
     mission = Mission.objects.get(name="next")
+    if not seen_before:
+        assert (orders(outcome), mission.robot) == ([], None)
+        assert robot_step_module._unbound_seen.is_set()  # the next step that ends a mission claims
+        return
+    assert [order.order_id for order in orders(outcome)] == ["next-n0-r0"]
     assert (mission.robot, mission.state) == (created.name, MissionState.RUNNING)
     assert mission.assignment[-1]["robot"] == created.name
 
@@ -355,16 +375,16 @@ def test_robots_falling_free_together_claim_different_missions_the_best_ones() -
     claimed: dict[str, str | None] = {}
     errors: list[BaseException] = []
 
-    def claim(name: str) -> None:
+    def claim_together(name: str) -> None:
         try:
             barrier.wait()
-            claimed[name] = mission_claim(robot=name)
+            claimed[name] = claim(name)
         except BaseException as error:  # reported below
             errors.append(error)
         finally:
             connection.close()
 
-    threads = [threading.Thread(target=claim, args=(name,)) for name in robots]
+    threads = [threading.Thread(target=claim_together, args=(name,)) for name in robots]
     for thread in threads:
         thread.start()
     for thread in threads:

@@ -19,6 +19,7 @@ from django.utils import timezone
 from changes.choices import ChangeKind
 from changes.models import Change
 from dispatch.held import state_digest
+from missions import robot_step as robot_step_module
 from missions.choices import FailureCategory, Lifecycle, MissionState
 from missions.models import Mission
 from missions.robot_step import StepOutcome, robot_step
@@ -504,8 +505,10 @@ def test_a_step_that_ends_the_robots_last_mission_looks_at_the_queue_again_in_th
     robot: Robot, tmp_path: Path
 ) -> None:
     """BEGIN with the locking reads, the queue read again once the mission ended, then the writes, the
-    queue lock, the look at the queue and COMMIT, in one round trip."""
+    queue lock, the look at the queue and COMMIT, in one round trip (a fleet of named missions: no claim
+    of an unbound one is tried)."""
     InstantAction.objects.filter(robot=robot).update(status=ActionStatus.FINISHED)  # no factsheet request
+    robot_step_module._unbound_seen.clear()
     create("m1", robot)
     [order] = orders(step(robot))
     put_state(robot, header_id=2, state=finished(order))
