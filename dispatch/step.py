@@ -28,6 +28,7 @@ from dispatch.instant import (
 )
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.sent import SentOrder, build_order, order_update_for, sent_order, stored
+from dispatch.stations import CHARGING
 from dispatch.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
 from vda5050 import compat, maps, orders
 from vda5050 import state as vda_state
@@ -77,6 +78,7 @@ def step(
             _try_start(result, robot, state, mission, now)
         if mission.state == MissionState.RUNNING and not _release_unaccepted(result, robot, state, mission):
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
+        track_charging(result, state)  # a mission that ended at startCharging leaves its robot charging
     send_instant_actions(result, robot, state, now, settings)
     return result
 
@@ -176,6 +178,8 @@ def _why_not_start(result: StepResult, robot: RobotView, state: State | None) ->
     assert state is not None  # a robot without a state is offline
     if result.robot_state == RobotState.TELEOP:
         return "Robot is in teleop"
+    if result.robot_state == RobotState.CHARGING:
+        return CHARGING  # until its charger's plan sends stopCharging (`dispatch.stations`)
     if pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return "Waiting for the robot to cancel its previous order"
     if not vda_state.may_receive_orders(state):

@@ -343,6 +343,9 @@ DISPATCH_STALL_CHECK_SECONDS = env_float("FLEET_STALL_CHECK_SECONDS", 5.0)
 # unbound mission, a robot freed, created, updated or back online), and the way robots freed otherwise
 # (charged, out of teleop) are found.
 ASSIGNMENT_CHECK_SECONDS = env_float("FLEET_ASSIGNMENT_CHECK_SECONDS", 3.0)
+# A robot idle this long (seconds), holding no station, is sent to the nearest free parking station
+# (README "Stations: charging and parking"); unset: robots never park by themselves.
+DISPATCH_PARK_AFTER_SECONDS = env_float("FLEET_PARK_AFTER_SECONDS", 0.0) or None
 # Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
 NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
 # The backoff is Celery's (`retry_backoff`), in whole seconds.

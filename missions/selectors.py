@@ -180,7 +180,8 @@ CANDIDATE_ROBOTS_SQL = f"""
         ),
         r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
         r.online AND r.lifecycle = '{Lifecycle.ALIVE}',
-        r.state <> '{RobotState.TELEOP}' AND NOT r.switch_teleop AND NOT EXISTS (
+        r.state NOT IN ('{RobotState.TELEOP}', '{RobotState.CHARGING}') AND NOT r.switch_teleop
+        AND NOT EXISTS (
             SELECT 1 FROM jsonb_each(r.errors) AS e(kind, error)
             WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
         ),

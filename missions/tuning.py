@@ -14,3 +14,8 @@ OUTBOX_LIMIT = 16
 
 # A notify call waits at most a day (seconds): longer is no notification.
 MAX_NOTIFY_TIMEOUT = 86_400
+
+# A charging trip that failed is tried again after this long, doubling per failure since the robot last
+# charged, up to the maximum: a robot that cannot reach its charger does not loop on it.
+TRIP_RETRY_SECONDS = 10.0
+TRIP_RETRY_MAX_SECONDS = 600.0

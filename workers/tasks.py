@@ -13,7 +13,9 @@ from changes.services import changes_trim
 from kit.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished, missions_assign
+from missions.trips import stations_plan_run
 from robots.status import robot_check_heartbeats
+from stations.selectors import stations_exist
 from workers.long_lived import keep_trying, retry_delay, settle_long_lived_process
 from workers.step_requests import (
     ASSIGN_TASK,
@@ -51,17 +53,20 @@ def step_robots(self: Task, names: list[str], requested_at: float | None = None)
 
 @shared_task(name=ASSIGN_TASK, ignore_result=True)
 def assign_missions() -> None:
-    """Bind unbound missions to free capable robots. The marker goes first: a request made during the run
-    queues one more, which sees what this one may have read too early."""
+    """Bind unbound missions to free capable robots, then send robots to charge or park (the same wake-ups
+    concern both: a robot freed, back online, changed). The marker goes first: a request made during the
+    run queues one more, which sees what this one may have read too early."""
     assignment_marker_clear()
     missions_assign()
+    stations_plan_run()
 
 
 @shared_task(name="fleet.assign_waiting", ignore_result=True)
 def assign_waiting() -> None:
     """Beat's safety net for assignment: a run while unbound missions wait, whatever wake-up was lost (or
-    a robot became free in a way nothing asks a run for: charged, out of teleop, its error cleared)."""
-    if mission_selectors.unbound_missions_wait():
+    a robot became free in a way nothing asks a run for: charged, out of teleop, its error cleared); and
+    the stations' clock while there are stations (batteries run low and fill up without a wake-up)."""
+    if mission_selectors.unbound_missions_wait() or stations_exist():
         queue_assignment()
 
 

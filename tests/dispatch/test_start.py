@@ -5,6 +5,7 @@ from typing import Any
 
 import pytest
 
+from dispatch.stations import CHARGING
 from dispatch.step import DEADLINE_PASSED
 from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
@@ -32,6 +33,7 @@ from vda5050.models import ActionStatus, ActionType, ErrorLevel, OperatingMode
         pytest.param({"online": False}, IDLE_STATE, [], "Robot is offline", id="offline"),
         pytest.param({}, None, [], "Robot is offline", id="no-state-yet"),
         pytest.param({"state": RobotState.TELEOP}, IDLE_STATE, [], "Robot is in teleop", id="teleop"),
+        pytest.param({}, robot_state(charging=True), [], CHARGING, id="charging"),
         pytest.param(
             {"lifecycle": Lifecycle.PENDING_DELETE},
             IDLE_STATE,
@@ -102,7 +104,6 @@ def test_a_queued_mission_waits_and_says_why(
         pytest.param(
             robot_state(order_id="old", action_states=[("a1", ActionStatus.FAILED)]), id="old-action-final"
         ),
-        pytest.param(robot_state(charging=True), id="charging"),
     ],
 )
 def test_a_queued_mission_starts_whenever_the_robot_can_take_it(state) -> None:

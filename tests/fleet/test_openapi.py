@@ -20,6 +20,7 @@ ENDPOINTS = {
     "/robot": {"get", "post"},
     "/robot/{name}": {"get", "put", "delete"},
     "/robot/{name}/teleop": {"post"},
+    "/robot/{name}/charge": {"post"},
     "/robot/{name}/map": {"get", "post"},
     "/mission": {"get", "post"},
     "/mission/{name}": {"get", "delete"},
@@ -213,7 +214,6 @@ def test_the_schema_states_the_limits(schema):
     assert (most_recent["minimum"], most_recent["maximum"]) == (0, 2**63 - 1)
     assert names["maxItems"] == settings.API_MAX_FILTER_VALUES
     assert (names["items"]["minLength"], names["items"]["pattern"]) == (1, "^[^\\u0000]*$")
-
 
 
 def test_the_station_filters_and_limits_are_documented(schema):

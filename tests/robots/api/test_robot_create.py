@@ -53,6 +53,8 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "info_messages": None,
             "errors": {},
             "maps": [],
+            "charge_requested": False,
+            "charging_waiting_reason": None,
         },
         "lifecycle": "ALIVE",
     }

@@ -48,6 +48,8 @@ def test_returns_the_robot_with_its_status(api):
         "info_messages": {"info": "charging soon"},
         "errors": {},
         "maps": [{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
+        "charge_requested": False,
+        "charging_waiting_reason": None,
     }
 
 
