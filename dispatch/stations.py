@@ -6,7 +6,8 @@ The rules, in the order they decide:
 - Reservations first: a station holds at most `capacity` robots (reserved, on their way, or there) and a
   robot holds at most one station. A reservation is released when its robot is gone or offline (past its
   heartbeat timeout), holds another station too (the first by station name is kept), holds a parking
-  station and is no longer idle (it got a mission), or holds a charger its charging trip failed to reach.
+  station and is no longer idle or has left it (it got a mission), or holds a charger its charging trip
+  failed to reach.
 - Stop charging: a robot at its charger stops (stopCharging, its charger released) once its battery reaches
   `recommended_maximum`, or, where that is null, once the robot no longer reports `charging`.
 - Charging: a robot is low at or below `recommended_minimum` (where that is null, its critical level), or
@@ -107,6 +108,7 @@ class StationRobot:
     trip_failed: bool = False  # its latest charging trip failed (or was canceled) before it charged
     retry_at: datetime | None = None  # no new charging trip before then (a failed trip's backoff)
     charge_now: bool = False  # an operator asked it to charge now, whatever its battery
+    left_parking: bool = False  # a client's mission started since its latest parking trip ended
 
     @property
     def wants_charge(self) -> bool:
@@ -177,7 +179,7 @@ def plan_stations(
                 releases.append(Release(name, station.name, GONE))
             elif name in holding:
                 releases.append(Release(name, station.name, HELD_TWICE))
-            elif station.kind == StationKind.PARKING and not robot.idle:
+            elif station.kind == StationKind.PARKING and (not robot.idle or robot.left_parking):
                 releases.append(Release(name, station.name, GOT_MISSION))
             elif station.kind == StationKind.CHARGER and robot.trip_failed:
                 releases.append(Release(name, station.name, TRIP_FAILED))

@@ -48,8 +48,9 @@ LOCK_STATIONS_SQL = f"""
 """
 _MISSIONS = Mission._meta.db_table
 # Every robot with what the plan needs: idle (no running mission but a parking trip, not in teleop), its
-# latest charging trip's state, its failed charging trips since its last charged one (the backoff), and
-# since when it idles (its last mission's end, else its creation; none while it has a queue).
+# latest charging trip's state, its failed charging trips since its last charged one (the backoff), since
+# when it idles (its last mission's end, else its creation; none while it has a queue), and whether a
+# client's mission started since its latest parking trip ended (it left, however short the mission).
 STATION_ROBOTS_SQL = f"""
     SELECT r.name, r.agv_class, r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
         r.online AND r.lifecycle = '{Lifecycle.ALIVE}',
@@ -69,6 +70,10 @@ STATION_ROBOTS_SQL = f"""
         ) THEN COALESCE(
             (SELECT max(m.end_timestamp) FROM {_MISSIONS} m WHERE m.robot = r.name), r.created_at
         ) END,
+        EXISTS (
+            SELECT 1 FROM {_MISSIONS} c WHERE c.robot = r.name AND c.purpose IS NULL
+              AND c.start_timestamp > park.end_timestamp
+        ),
         r.charge_requested, r.charging_waiting_reason
     FROM {Robot._meta.db_table} r
     LEFT JOIN LATERAL (
@@ -85,6 +90,11 @@ STATION_ROBOTS_SQL = f"""
               AND c.state = '{MissionState.COMPLETED}'
           ), 0)
     ) AS failed ON true
+    LEFT JOIN LATERAL (
+        SELECT m.end_timestamp FROM {_MISSIONS} m
+        WHERE m.robot = r.name AND m.purpose = '{MissionPurpose.PARK}'
+        ORDER BY m.queue_position DESC LIMIT 1
+    ) AS park ON true
 """
 # Neither waits for a robot another transaction holds (a step, the bridge's flush): what it skips, the next
 # run writes. An operator's request ends once the robot holds a charger.
@@ -269,6 +279,7 @@ def _station_robot(
     failures: int,
     last_failure: datetime | None,
     idle_since: datetime | None,
+    left_parking: bool,
     charge_requested: bool,
 ) -> StationRobot:
     retry_at = None
@@ -288,4 +299,5 @@ def _station_robot(
         trip_failed=trip_state in (MissionState.FAILED, MissionState.CANCELED),
         retry_at=retry_at,
         charge_now=charge_requested,
+        left_parking=left_parking,
     )

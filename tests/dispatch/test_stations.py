@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from dispatch.stations import (
     CHARGING,
+    GOT_MISSION,
     NO_CHARGER,
     NO_FREE_CHARGER,
     NO_POSE,
@@ -196,6 +197,13 @@ def test_a_charger_whose_trip_failed_is_released_and_the_next_robot_gets_it():
     assert [(release.robot, release.reason) for release in result.releases] == [("failed", TRIP_FAILED)]
     assert {trip.robot: trip.station for trip in result.charging_trips} == {"next": "c1"}
     assert result.waiting == {"failed": RETRY_LATER}
+
+
+def test_a_parked_robot_that_ran_a_mission_since_leaves_its_place_even_if_idle_again():
+    result = plan([robot("r1", left_parking=True)], [station("p1", kind=PARKING, reservations=("r1",))])
+
+    assert result.reservations == {"p1": ()}
+    assert [(release.robot, release.reason) for release in result.releases] == [("r1", GOT_MISSION)]
 
 
 # --- stopping ----------------------------------------------------------------------------------------------
