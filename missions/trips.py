@@ -14,7 +14,6 @@ from collections.abc import Iterable
 from datetime import datetime, timedelta
 from typing import Any
 
-import orjson
 from django.conf import settings
 from django.db import connection, transaction
 from django.db.backends.utils import CursorWrapper
@@ -23,7 +22,7 @@ from django.utils import timezone
 from dispatch.assignment import Pose
 from dispatch.stations import CHARGED, Battery, StationPlan, StationRobot, StationSite, Trip, plan_stations
 from dispatch.vocabulary import Lifecycle, MissionPurpose, MissionState, RobotState, StationKind
-from kit.db import jsonb
+from kit.db import json_column, jsonb
 from kit.wake import request_steps
 from missions.models import Mission
 from missions.services import PRIORITY_MAX, mission_cancel, mission_create
@@ -234,10 +233,6 @@ def _trips_cancel(robot_purposes: Iterable[tuple[str, MissionPurpose]]) -> None:
             mission_cancel(actor=TRIP_ACTOR, mission=mission)
 
 
-def _json(value: Any) -> Any:
-    return orjson.loads(value) if isinstance(value, str | bytes) else value
-
-
 def _station_site(
     name: str,
     kind: str,
@@ -253,9 +248,9 @@ def _station_site(
         name=name,
         kind=StationKind(kind),
         pose=Pose(x, y, map_id),
-        robot_types=frozenset(_json(robot_types) or ()),
+        robot_types=frozenset(json_column(robot_types) or ()),
         capacity=capacity,
-        reservations=tuple(_json(reservations) or ()),
+        reservations=tuple(json_column(reservations) or ()),
         theta=theta,
     )
 
