@@ -35,8 +35,10 @@ from vda5050.orders import DEFAULT_ALLOWED_DEVIATION_THETA, DEFAULT_ALLOWED_DEVI
 
 # Who the write records of trips name.
 TRIP_ACTOR = "dispatch"
-# A trip goes ahead of every client's mission in its robot's queue (a running mission is never preempted).
-TRIP_PRIORITY = PRIORITY_MAX + 1
+# A trip goes ahead of its robot's queue (a running mission is never preempted): the highest priority the API
+# allows, so that it stays within what the API documents (only a client's missions of that priority queued
+# before it go first; a robot is sent only while idle, when its queue has nothing it can start).
+TRIP_PRIORITY = PRIORITY_MAX
 PURPOSES = {StationKind.CHARGER: MissionPurpose.CHARGE, StationKind.PARKING: MissionPurpose.PARK}
 _UNFINISHED = f"('{MissionState.PENDING}', '{MissionState.RUNNING}')"
 _ENDED_UNDONE = f"('{MissionState.FAILED}', '{MissionState.CANCELED}')"
