@@ -14,6 +14,7 @@ from dispatch.stations import CHARGING, NO_FREE_CHARGER, NO_START_CHARGING, RETR
 from dispatch.vocabulary import MissionPurpose, RobotState, StationKind
 from missions.choices import MissionState
 from missions.models import Mission
+from missions.robot_step import robot_step
 from missions.selectors import assignment_inputs
 from missions.services import mission_create
 from missions.trips import TRIP_PRIORITY, stations_plan_run
@@ -21,6 +22,7 @@ from robots.models import InstantAction, Robot
 from robots.services import robot_delete
 from stations.models import Station
 from tests.factories import TEST_ACTOR, RobotFactory, StationFactory
+from tests.missions.test_robot_step import put_state
 from vda5050.models import ActionType
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -248,3 +250,18 @@ def test_an_operators_request_sends_a_charged_robot_and_ends_once_it_holds_the_c
     stations_plan_run()
     assert reservations("c1") == ["busy-charger"] and len(trips("asked")) == 1
     assert Robot.objects.get(name="busy-charger").charging_waiting_reason == CHARGING  # on its way
+
+
+def test_a_robot_below_its_critical_level_starts_its_charging_trip(make_robot) -> None:
+    created = make_robot(prefix="critical")
+    Robot.objects.filter(name=created.name).update(
+        online=True, battery_level=5.0, pose_map_id="map", last_state_at=timezone.now(), factsheet=CAN_CHARGE
+    )
+    put_state(created, header_id=1, battery=5.0)  # below the critical level 10, as the step sees it
+    station("c1")
+    stations_plan_run()
+    [trip] = trips(created.name)
+
+    robot_step(name=created.name)
+
+    assert Mission.objects.get(name=trip.name).state == MissionState.RUNNING
