@@ -9,7 +9,7 @@ The rules, in the order they decide:
   station and is no longer idle or has left it (it got a mission), or holds a charger its charging trip
   failed to reach.
 - Stop charging: a robot at its charger stops (stopCharging, its charger released) once its battery reaches
-  `recommended_maximum`, or, where that is null, once the robot no longer reports `charging`.
+  `recommended_maximum`, or once the robot no longer reports `charging` (full, where that is null).
 - Charging: a robot is low at or below `recommended_minimum` (where that is null, its critical level), or
   when an operator asked it to charge now. A low robot that is online, idle (no running mission, not in
   teleop), whose factsheet lists `startCharging`, that holds no charger and whose last failed trip's
@@ -88,10 +88,12 @@ class Battery:
 
     @property
     def charged(self) -> bool:
-        """Full enough to stop: at its recommended maximum, or, where that is null, no longer charging."""
-        if self.recommended_maximum is None:
-            return not self.charging
-        return self.level >= self.recommended_maximum
+        """Done at its charger: at its recommended maximum, or no longer charging (full where that is null;
+        else it stopped by itself: restarted, unplugged, driven off), so that its charger is never held
+        by a robot that does not charge there."""
+        if not self.charging:
+            return True
+        return self.recommended_maximum is not None and self.level >= self.recommended_maximum
 
 
 @dataclass(frozen=True)

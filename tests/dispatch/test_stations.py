@@ -216,6 +216,10 @@ STOP_CASES = {
         robot("r1", 99, at_station=True, battery={"recommended_maximum": None, "charging": True}),
         False,
     ),
+    "below it but no longer charging (restarted, unplugged)": (
+        robot("r1", 50, at_station=True, battery={"charging": False}),
+        True,
+    ),
     "no maximum: charging ended": (
         robot("r1", 99, at_station=True, battery={"recommended_maximum": None, "charging": False}),
         True,
