@@ -292,16 +292,16 @@ def test_stations_are_drawn_with_who_holds_them_and_a_charging_robot_in_its_colo
     fleet: FleetPage, api, simulator: Callable[..., Simulator], unique
 ):
     robot, charger, parking = unique("low"), unique("charger"), unique("parking")
-    for name, kind, x in ((charger, "CHARGER", 3), (parking, "PARKING", -3)):
-        body = {"name": name, "kind": kind, "pose": {"x": x, "y": 0, "theta": 0, "map_id": "map"}}
-        assert api.post("/station", body, format="json").status_code == 200
-    station = fleet.page.locator(f'.station[data-station="{parking}"]')
-    expect(station).to_have_attribute("title", f"{parking}: PARKING, 0/1 held")
-    expect(station).to_have_attribute("data-held", "no")
-
     simulator(f"{robot},0,0,0,map,,20")  # at 20 %, below the minimum it gets: it goes to charge
     create_robot(api, robot, battery={"recommended_minimum": 30, "recommended_maximum": 90})
+    expect(fleet.marker(robot)).to_have_count(1)  # the page shows the robots' map
+    for name, kind, x in ((parking, "PARKING", -3), (charger, "CHARGER", 3)):
+        body = {"name": name, "kind": kind, "pose": {"x": x, "y": 0, "theta": 0, "map_id": "map"}}
+        assert api.post("/station", body, format="json").status_code == 200
 
+    free = fleet.page.locator(f'.station[data-station="{parking}"]')
+    expect(free).to_have_attribute("title", f"{parking}: PARKING, 0/1 held")
+    expect(free).to_have_attribute("data-held", "no")
     held = fleet.page.locator(f'.station[data-station="{charger}"]')
     expect(held).to_have_attribute("title", f"{charger}: CHARGER, 1/1 held by {robot}")
     expect(held).to_have_attribute("data-held", "yes")
