@@ -38,7 +38,9 @@ def _model_default(field: str) -> Any:
 
 class BatterySpecSerializer(StrictSerializer):
     critical_level = NumberField(
-        default=_model_default("battery_critical_level"), help_text="Stored, unused."
+        default=_model_default("battery_critical_level"),
+        help_text="Battery level below which the robot takes no mission but its trip to a charger; where "
+        "recommended_minimum is null, at or below it an idle robot is sent to charge.",
     )
     recommended_minimum = NumberField(
         allow_null=True,
