@@ -90,12 +90,12 @@ def test_a_robot_low_after_a_mission_charges_at_the_nearest_charger_and_its_next
 
 
 def test_two_low_robots_and_one_charger_one_charges_the_other_waits_and_charges_next(api, simulator, unique):
-    charger = unique("charger")
-    post_station(api, charger, 5)
     battery = {"critical_level": 10, "recommended_minimum": 30, "recommended_maximum": 40}
     lower, low = robots_with_batteries(
         api, simulator, unique, ("lower", 0, 24), ("low", 2, 26), battery=battery
     )
+    charger = unique("charger")
+    post_station(api, charger, 5)  # once both can charge (their factsheets in): the lower battery first
 
     wait_trip(api, lower)
     wait_robot(api, low, charging_waiting_reason=NO_FREE_CHARGER)
