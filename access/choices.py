@@ -31,6 +31,7 @@ class WriteAction(models.TextChoices):
     ROBOT_DELETE = "robot_delete"
     ROBOT_TELEOP = "robot_teleop"
     ROBOT_MAP = "robot_map"
+    ROBOT_CHARGE = "robot_charge"
     MISSION_CREATE = "mission_create"
     MISSION_CANCEL = "mission_cancel"
     MISSION_UPDATE = "mission_update"

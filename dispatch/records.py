@@ -70,6 +70,8 @@ class MissionRecord:
     progress_seen_at: datetime | None = None
     # The bindings assignment made (issue 41): not empty for a mission posted without a robot.
     assignment: list[dict[str, Any]] = field(default_factory=list)
+    # A trip the dispatch core made (`MissionPurpose`): a CHARGE trip starts below the critical level.
+    purpose: str | None = None
 
     @property
     def done(self) -> bool:

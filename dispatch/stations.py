@@ -5,17 +5,20 @@ The rules, in the order they decide:
 
 - Reservations first: a station holds at most `capacity` robots (reserved, on their way, or there) and a
   robot holds at most one station. A reservation is released when its robot is gone or offline (past its
-  heartbeat timeout), holds another station too (the first by station name is kept), or holds a parking
-  station and is no longer idle (it got a mission).
+  heartbeat timeout), holds another station too (the first by station name is kept), holds a parking
+  station and is no longer idle or has left it (it got a mission), or holds a charger its charging trip
+  failed to reach.
 - Stop charging: a robot at its charger stops (stopCharging, its charger released) once its battery reaches
-  `recommended_maximum`, or, where that is null, once the robot no longer reports `charging`.
-- Charging: a robot is low at or below `recommended_minimum` (where that is null, its critical level). A low
-  robot that is online, idle (no running mission, not in teleop), whose factsheet lists `startCharging`,
-  and that holds no charger gets the nearest free charger it may use (its type; on its map), the lowest
-  battery first when chargers are scarce. A robot parked leaves its parking station for the charger.
+  `recommended_maximum`, or once the robot no longer reports `charging` (full, where that is null).
+- Charging: a robot is low at or below `recommended_minimum` (where that is null, its critical level), or
+  when an operator asked it to charge now. A low robot that is online, idle (no running mission, not in
+  teleop), whose factsheet lists `startCharging`, that holds no charger and whose last failed trip's
+  backoff has passed gets the nearest free charger it may use (its type; on its map), operators' requests
+  first, then the lowest battery when chargers are scarce. A robot parked leaves its parking station for
+  the charger.
 - Parking (when `park_after_seconds` is set): a robot idle that long, online, not low, holding no station,
   gets the nearest free parking station it may use on its map, the longest idle first.
-- Every low robot without a charging trip gets one waiting reason, the first that holds.
+- Every robot wanting a charge without a charging trip gets one waiting reason, the first that holds.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ __all__ = [
     "NO_POSE",
     "NO_START_CHARGING",
     "OFFLINE",
+    "RETRY_LATER",
     "Battery",
     "Pose",
     "Release",
@@ -54,6 +58,7 @@ NO_START_CHARGING = "factsheet lists no startCharging"
 NO_POSE = "no pose on a map"
 NO_CHARGER = "no charger it may use on its map"
 NO_FREE_CHARGER = "no free charger"
+RETRY_LATER = "its last charging trip failed: retrying later"
 
 # Why a reservation is released.
 GONE = "robot gone or offline"
@@ -62,6 +67,7 @@ OVER_CAPACITY = "station over capacity"
 GOT_MISSION = "robot got a mission"
 CHARGED = "charged"
 LEFT_FOR_CHARGER = "left for a charger"
+TRIP_FAILED = "charging trip failed"
 
 
 @dataclass(frozen=True)
@@ -82,10 +88,12 @@ class Battery:
 
     @property
     def charged(self) -> bool:
-        """Full enough to stop: at its recommended maximum, or, where that is null, no longer charging."""
-        if self.recommended_maximum is None:
-            return not self.charging
-        return self.level >= self.recommended_maximum
+        """Done at its charger: at its recommended maximum, or no longer charging (full where that is null;
+        else it stopped by itself: restarted, unplugged, driven off), so that its charger is never held
+        by a robot that does not charge there."""
+        if not self.charging:
+            return True
+        return self.recommended_maximum is not None and self.level >= self.recommended_maximum
 
 
 @dataclass(frozen=True)
@@ -99,6 +107,14 @@ class StationRobot:
     can_charge: bool  # its factsheet lists startCharging
     at_station: bool  # its trip to the station it holds has ended (startCharging done, for a charger)
     idle_since: datetime | None  # None: not idle, or since when is not known
+    trip_failed: bool = False  # its latest charging trip failed (or was canceled) before it charged
+    retry_at: datetime | None = None  # no new charging trip before then (a failed trip's backoff)
+    charge_now: bool = False  # an operator asked it to charge now, whatever its battery
+    left_parking: bool = False  # a client's mission started since its latest parking trip ended
+
+    @property
+    def wants_charge(self) -> bool:
+        return self.charge_now or self.battery.low
 
 
 @dataclass(frozen=True)
@@ -109,6 +125,7 @@ class StationSite:
     robot_types: frozenset[str]  # empty: any robot
     capacity: int
     reservations: tuple[str, ...]  # robots holding it, in the order they got it
+    theta: float = 0.0  # the heading a robot there takes
 
     def serves(self, robot: StationRobot) -> bool:
         on_map = robot.pose is not None and robot.pose.map_id == self.pose.map_id
@@ -138,7 +155,7 @@ class StationPlan:
     parking_trips: tuple[Trip, ...]
     stop_charging: tuple[str, ...]  # robots to send stopCharging (their charger is among the releases)
     releases: tuple[Release, ...]
-    waiting: dict[str, str]  # low robot -> why it has no charging trip
+    waiting: dict[str, str]  # robot wanting a charge -> why it has no charging trip
     reservations: dict[str, tuple[str, ...]]  # every station -> the robots holding it after this plan
 
 
@@ -164,8 +181,10 @@ def plan_stations(
                 releases.append(Release(name, station.name, GONE))
             elif name in holding:
                 releases.append(Release(name, station.name, HELD_TWICE))
-            elif station.kind == StationKind.PARKING and not robot.idle:
+            elif station.kind == StationKind.PARKING and (not robot.idle or robot.left_parking):
                 releases.append(Release(name, station.name, GOT_MISSION))
+            elif station.kind == StationKind.CHARGER and robot.trip_failed:
+                releases.append(Release(name, station.name, TRIP_FAILED))
             elif len(held[station.name]) >= station.capacity:
                 releases.append(Release(name, station.name, OVER_CAPACITY))
             else:
@@ -195,11 +214,11 @@ def plan_stations(
     charging_trips, waiting = [], {}
     chargers = [station for station in stations if station.kind == StationKind.CHARGER]
     low = sorted(
-        (robot for robot in robots if robot.battery.low),
-        key=lambda robot: (robot.battery.level, robot.name),
+        (robot for robot in robots if robot.wants_charge),
+        key=lambda robot: (not robot.charge_now, robot.battery.level, robot.name),
     )
     for robot in low:
-        reason = _charging_blocked(robot, holding, kinds)
+        reason = _charging_blocked(robot, holding, kinds, now=now)
         if reason is None:
             usable = [station for station in chargers if station.serves(robot)]
             free = [station for station in usable if len(held[station.name]) < station.capacity]
@@ -242,7 +261,7 @@ def plan_stations(
 
 
 def _charging_blocked(
-    robot: StationRobot, holding: dict[str, str], kinds: dict[str, StationKind]
+    robot: StationRobot, holding: dict[str, str], kinds: dict[str, StationKind], *, now: datetime
 ) -> str | None:
     """Why a low robot gets no charging trip before a charger is looked for; None: it may get one."""
     if kinds.get(holding.get(robot.name, "")) == StationKind.CHARGER:
@@ -255,17 +274,19 @@ def _charging_blocked(
         return NO_START_CHARGING
     if robot.pose is None:
         return NO_POSE
+    if robot.retry_at is not None and now < robot.retry_at:
+        return RETRY_LATER
     return None
 
 
 def _parks(robot: StationRobot, holding: dict[str, str], *, now: datetime, after: float) -> bool:
-    """Idle for `after` seconds, online, not low, holding no station."""
+    """Idle for `after` seconds, online, not wanting a charge, holding no station."""
     return (
         robot.online
         and robot.idle
         and robot.idle_since is not None
         and (now - robot.idle_since).total_seconds() >= after
-        and not robot.battery.low
+        and not robot.wants_charge
         and robot.name not in holding
     )
 

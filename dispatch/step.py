@@ -28,7 +28,16 @@ from dispatch.instant import (
 )
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.sent import SentOrder, build_order, order_update_for, sent_order, stored
-from dispatch.vocabulary import DONE_STATES, FailureCategory, Lifecycle, MissionState, NodeKind, RobotState
+from dispatch.stations import CHARGING
+from dispatch.vocabulary import (
+    DONE_STATES,
+    FailureCategory,
+    Lifecycle,
+    MissionPurpose,
+    MissionState,
+    NodeKind,
+    RobotState,
+)
 from vda5050 import compat, maps, orders
 from vda5050 import state as vda_state
 from vda5050.models import (
@@ -77,6 +86,7 @@ def step(
             _try_start(result, robot, state, mission, now)
         if mission.state == MissionState.RUNNING and not _release_unaccepted(result, robot, state, mission):
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
+        track_charging(result, state)  # a mission that ended at startCharging leaves its robot charging
     send_instant_actions(result, robot, state, now, settings)
     return result
 
@@ -103,12 +113,15 @@ def _try_start(
             category=FailureCategory.DEADLINE,
         )
         return
-    unfit = _why_unfit(robot, state)
+    charging_trip = mission.purpose == MissionPurpose.CHARGE
+    unfit = _why_unfit(robot, state, charging_trip=charging_trip)
     if unfit is not None and mission.assignment:
         result.release = unfit  # bound by assignment: another robot may run it now
         mission.waiting_reason = unfit
         return
-    reason = _why_not_start(result, robot, state) or _maps_missing(state, mission)
+    reason = _why_not_start(result, robot, state, charging_trip=charging_trip) or _maps_missing(
+        state, mission
+    )
     if reason is not None:
         mission.waiting_reason = reason
         return
@@ -169,13 +182,17 @@ def _not_taken_up(mission: MissionRecord) -> bool:
     )
 
 
-def _why_not_start(result: StepResult, robot: RobotView, state: State | None) -> str | None:
-    unfit = _why_unfit(robot, state)
+def _why_not_start(
+    result: StepResult, robot: RobotView, state: State | None, *, charging_trip: bool = False
+) -> str | None:
+    unfit = _why_unfit(robot, state, charging_trip=charging_trip)
     if unfit is not None:
         return unfit
     assert state is not None  # a robot without a state is offline
     if result.robot_state == RobotState.TELEOP:
         return "Robot is in teleop"
+    if result.robot_state == RobotState.CHARGING:
+        return CHARGING  # until its charger's plan sends stopCharging (`dispatch.stations`)
     if pending_action(result, ActionType.CANCEL_ORDER) is not None:
         return "Waiting for the robot to cancel its previous order"
     if not vda_state.may_receive_orders(state):
@@ -185,16 +202,17 @@ def _why_not_start(result: StepResult, robot: RobotView, state: State | None) ->
     return None
 
 
-def _why_unfit(robot: RobotView, state: State | None) -> str | None:
+def _why_unfit(robot: RobotView, state: State | None, *, charging_trip: bool = False) -> str | None:
     """Why the robot cannot take a mission until something outside the mission changes: it is being
-    deleted, offline, below its critical battery level or reports a FATAL error of its own. A mission
-    assignment bound to it goes back to the pool (`StepResult.release`)."""
+    deleted, offline, below its critical battery level (unless the mission is its trip to a charger) or
+    reports a FATAL error of its own. A mission assignment bound to it goes back to the pool
+    (`StepResult.release`)."""
     if robot.lifecycle != Lifecycle.ALIVE:
         return "Robot is being deleted"
     if not robot.online or state is None:
         return "Robot is offline"
     charge = state.battery_state.battery_charge
-    if charge < robot.battery_critical_level:
+    if charge < robot.battery_critical_level and not charging_trip:
         return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
     # A FATAL error about an earlier order ended that order's leaf; one about nothing in particular means
     # the robot itself cannot work until someone fixes it.

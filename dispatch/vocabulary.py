@@ -24,6 +24,7 @@ __all__ = [
     "AgvClass",
     "FailureCategory",
     "Lifecycle",
+    "MissionPurpose",
     "MissionState",
     "NodeKind",
     "RobotState",
@@ -98,6 +99,14 @@ class AgvClass(StrEnum):
     CARRIER = "CARRIER"
     MANIPULATOR = "MANIPULATOR"
     HUMANOID = "HUMANOID"
+
+
+class MissionPurpose(StrEnum):
+    """What a mission the dispatch core made itself is for (a client's missions have none): a trip to a
+    charger to charge, or to a parking station to wait."""
+
+    CHARGE = "CHARGE"
+    PARK = "PARK"
 
 
 class StationKind(StrEnum):

@@ -351,6 +351,9 @@ ASSIGNMENT_CHECK_SECONDS = env_float("FLEET_ASSIGNMENT_CHECK_SECONDS", 3.0)
 ASSIGNMENT_QUIET_SECONDS = env_float("FLEET_ASSIGNMENT_QUIET_SECONDS", 0.25)
 # ... but a stream that never pauses is bound at least this often.
 ASSIGNMENT_HOLD_SECONDS = env_float("FLEET_ASSIGNMENT_HOLD_SECONDS", 10.0)
+# A robot idle this long (seconds), holding no station, is sent to the nearest free parking station
+# (README "Stations: charging and parking"); unset: robots never park by themselves.
+DISPATCH_PARK_AFTER_SECONDS = env_float("FLEET_PARK_AFTER_SECONDS", 0.0) or None
 # Notify nodes: HTTP POST retries (with exponential backoff) on the reference's retryable statuses.
 NOTIFY_RETRIES = env_int("FLEET_NOTIFY_RETRIES", 3)
 # The backoff is Celery's (`retry_backoff`), in whole seconds.

@@ -17,6 +17,11 @@ def jsonb(value: Any) -> Jsonb:
     return Jsonb(value, dumps=_json_bytes)
 
 
+def json_column(value: Any) -> Any:
+    """A JSON column read by plain SQL: Django leaves it undecoded."""
+    return orjson.loads(value) if isinstance(value, str | bytes) else value
+
+
 def _json_bytes(value: Any) -> bytes:
     try:
         return orjson.dumps(value, option=orjson.OPT_NON_STR_KEYS)

@@ -8,8 +8,9 @@ from dispatch import vocabulary
 from dispatch.vocabulary import DONE_STATES
 from kit.choices import Lifecycle, vocabulary_choices
 
-__all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionState", "NodeKind"]
+__all__ = ["DONE_STATES", "FailureCategory", "Lifecycle", "MissionPurpose", "MissionState", "NodeKind"]
 
 MissionState = vocabulary_choices(vocabulary.MissionState)
 FailureCategory = vocabulary_choices(vocabulary.FailureCategory)
 NodeKind = vocabulary_choices(vocabulary.NodeKind)
+MissionPurpose = vocabulary_choices(vocabulary.MissionPurpose)

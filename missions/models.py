@@ -1,6 +1,6 @@
 from django.db import models
 
-from missions.choices import FailureCategory, Lifecycle, MissionState
+from missions.choices import FailureCategory, Lifecycle, MissionPurpose, MissionState
 
 QUEUE_POSITION_SEQUENCE = "missions_mission_queue_position_seq"
 
@@ -35,6 +35,15 @@ class Mission(models.Model):
         null=True, blank=True, help_text="Who can run an unbound mission: labels, robot_types, action_types."
     )
     mission_tree = models.JSONField(help_text="Nodes in the API's shape, each with its name and parent.")
+    purpose = models.CharField(
+        max_length=20,
+        choices=MissionPurpose.choices,
+        null=True,
+        blank=True,
+        editable=False,
+        help_text='A trip the dispatch core made itself: CHARGE or PARK (README "Stations"); null for a '
+        "client's mission.",
+    )
     timeout = models.FloatField(default=300.0, help_text="Seconds from start before the mission fails.")
     deadline = models.DateTimeField(null=True, blank=True)
     needs_canceled = models.BooleanField(default=False)

@@ -178,11 +178,11 @@ UNBOUND_MISSIONS_SQL = f"""
 MISSION_ROUTES_SQL = (
     f"SELECT name, mission_tree, update_nodes FROM {Mission._meta.db_table} WHERE name = ANY(%s)"
 )
-# A robot may take a mission: online, not in teleop nor in an operating mode that takes no orders (VDA 5050's
-# MANUAL, SERVICE, ...), no FATAL error of its own.
+# A robot may take a mission: online, not in teleop nor charging nor in an operating mode that takes no
+# orders (VDA 5050's MANUAL, SERVICE, ...), no FATAL error of its own.
 _MAY_WORK_SQL = f"""
     r.online AND r.lifecycle = '{Lifecycle.ALIVE}'
-    AND r.state <> '{RobotState.TELEOP}' AND NOT r.switch_teleop
+    AND r.state NOT IN ('{RobotState.TELEOP}', '{RobotState.CHARGING}') AND NOT r.switch_teleop
     AND r.operating_mode NOT IN ({", ".join(sorted(f"'{mode.value}'" for mode in MODES_WITHOUT_ORDERS))})
     AND NOT EXISTS (
         SELECT 1 FROM jsonb_each(r.errors) AS e(kind, error)

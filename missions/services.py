@@ -75,6 +75,7 @@ def mission_create(*, actor: str, name: str | None, prefix: str | None, spec: Ma
         robot=robot,
         priority=spec.get("priority", 0),
         robot_selector=None if selector is None else _plain(selector),
+        purpose=spec.get("purpose"),  # only the dispatch core's trips have one (missions.trips)
         mission_tree=[
             {"name": node.name, "parent": node.parent, node.kind: node.params} for node in tree.nodes
         ],

@@ -18,3 +18,8 @@ MAX_NOTIFY_TIMEOUT = 86_400
 # A robot that falls free chooses its next mission among this many unbound ones (highest priority, oldest
 # first: `missions.services.mission_claim`); one that suits none of them waits for the assignment run.
 CLAIM_PAGE = 16
+
+# A charging trip that failed is tried again after this long, doubling per failure since the robot last
+# charged, up to the maximum: a robot that cannot reach its charger does not loop on it.
+TRIP_RETRY_SECONDS = 10.0
+TRIP_RETRY_MAX_SECONDS = 600.0

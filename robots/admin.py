@@ -27,7 +27,14 @@ from robots.api.serializers import MapActionRequestSerializer, RobotSpecSerializ
 from robots.choices import MapAction, SettingSource, TeleopAction
 from robots.models import Robot, RobotMapAction
 from robots.selectors import robot_map_actions
-from robots.services import robot_create, robot_delete, robot_map_action, robot_teleop, robot_update_spec
+from robots.services import (
+    robot_charge,
+    robot_create,
+    robot_delete,
+    robot_map_action,
+    robot_teleop,
+    robot_update_spec,
+)
 
 BATTERY_FIELDS = ("battery_critical_level", "battery_recommended_minimum", "battery_recommended_maximum")
 # Spec fields an operator may edit on an existing robot; teleop is switched with the actions instead,
@@ -39,6 +46,8 @@ STATUS_FIELDS = (
     "operating_mode",
     "online",
     "battery_level",
+    "charge_requested",
+    "charging_waiting_reason",
     "pose",
     "position_initialized",
     "last_state_at",
@@ -58,6 +67,7 @@ IDENTITY_FIELDS = (
     "compatibility_rules",
 )
 SPEC_FIELDS = (*EDITABLE_SPEC_FIELDS, "switch_teleop")
+
 
 def html_table(headers: Iterable[str], rows: Iterable[Iterable[object]]) -> SafeString:
     """A read-only list (what a robot reports, what was asked of it) as a small HTML table, escaped."""
@@ -136,7 +146,7 @@ class RobotAdmin(ServiceAdmin):
     search_fields = ("name",)
     ordering = ("name",)
     list_per_page = 50
-    actions = ("start_teleop", "stop_teleop")
+    actions = ("start_teleop", "stop_teleop", "charge")
     add_fieldsets = (
         (None, {"fields": ("name",)}),
         ("Spec", {"fields": ("labels", BATTERY_FIELDS, "heartbeat_timeout", "switch_teleop")}),
@@ -229,6 +239,16 @@ class RobotAdmin(ServiceAdmin):
     @admin.action(description="Stop teleop", permissions=["change"])
     def stop_teleop(self, request: HttpRequest, queryset: QuerySet[Robot]) -> None:
         self.teleop(request, queryset, TeleopAction.STOP)
+
+    @admin.action(description="Charge now", permissions=["change"])
+    def charge(self, request: HttpRequest, queryset: QuerySet[Robot]) -> None:
+        call_service_for_each(
+            self,
+            request,
+            queryset,
+            lambda robot: robot_charge(actor=request_actor(request), robot=robot),
+            "sent to charge",
+        )
 
 
 class MapActionAdminForm(forms.ModelForm):

@@ -105,6 +105,18 @@ class Robot(models.Model):
         "zone_set_status.",
     )
     last_state_at = models.DateTimeField(null=True, blank=True)
+    # --- charging (the station plan's, `missions.trips`) ---
+    charge_requested = models.BooleanField(
+        default=False,
+        help_text="An operator asked it to charge now (POST /robot/{name}/charge); cleared once it holds a "
+        "charger.",
+    )
+    charging_waiting_reason = models.TextField(
+        null=True,
+        blank=True,
+        help_text="Why the robot, low or asked to charge, has no charging trip (no free charger, its "
+        "factsheet lists no startCharging, ...); null otherwise.",
+    )
 
     created_at = models.DateTimeField(auto_now_add=True)
     updated_at = models.DateTimeField(auto_now=True)

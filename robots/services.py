@@ -17,7 +17,14 @@ from kit.api.rows import lock_row
 from kit.wake import request_assignment, request_steps
 from missions.models import Mission
 from robots import livestate
-from robots.choices import TELEOP_ALLOWED_STATES, Lifecycle, MapAction, SettingSource, TeleopAction
+from robots.choices import (
+    TELEOP_ALLOWED_STATES,
+    Lifecycle,
+    MapAction,
+    RobotState,
+    SettingSource,
+    TeleopAction,
+)
 from robots.models import InstantAction, Robot
 from vda5050.errors import ProtocolError
 from vda5050.maps import has_maps, map_action_parameters
@@ -125,6 +132,35 @@ def robot_teleop(*, actor: str, robot: Robot, action: TeleopAction) -> Robot:
         write_record(actor=actor, action=WriteAction.ROBOT_TELEOP, object_name=locked.name)
         request_steps([locked.name])
     return locked
+
+
+def robot_charge(*, actor: str, robot: Robot) -> Robot:
+    """Ask the robot to charge now, whatever its battery: the station plan (`missions.trips`) reserves it
+    the nearest free charger and sends it there, or records why it waits (`charging_waiting_reason`).
+    Refused for a robot that cannot: offline, charging already, or without startCharging in its factsheet.
+    """
+    with transaction.atomic():
+        locked = lock_row(robot)
+        if not locked.online:
+            raise UsageError(f"Robot {locked.name} is offline: it cannot be sent to charge.")
+        if locked.state == RobotState.CHARGING:
+            raise UsageError(f"Robot {locked.name} is charging already.")
+        if ActionType.START_CHARGING not in _factsheet_action_types(locked.factsheet):
+            raise UsageError(
+                f"Robot {locked.name} cannot be sent to charge: its factsheet lists no startCharging."
+            )
+        locked.charge_requested = True
+        locked.save(update_fields=["charge_requested", "updated_at"])
+        write_record(actor=actor, action=WriteAction.ROBOT_CHARGE, object_name=locked.name)
+        request_assignment()  # the run that plans the stations
+    return locked
+
+
+def _factsheet_action_types(factsheet: Mapping[str, Any] | None) -> set[str]:
+    """The action types a stored factsheet lists (protocolFeatures.agvActions; mobileRobotActions in 3.0)."""
+    features = (factsheet or {}).get("protocolFeatures") or {}
+    actions = features.get("agvActions") or features.get("mobileRobotActions") or []
+    return {action.get("actionType") for action in actions if isinstance(action, Mapping)}
 
 
 def robot_map_action(

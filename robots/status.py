@@ -92,7 +92,9 @@ ROBOTS_BY_NAME_SQL = f"SELECT name FROM {Robot._meta.db_table} WHERE name = ANY(
 
 def robot_status_write(*, columns: tuple[str, ...], rows: list[tuple[Any, ...]]) -> set[str]:
     """The bridge's status flush: write `columns` of each row's robot (the values, then the robot's name)
-    unless another transaction holds the robot; returns the robots skipped that way.
+    unless another transaction holds the robot; returns the robots skipped that way. A write that takes a
+    robot's battery down to its low mark (its minimum, else its critical level) asks for an assignment run,
+    which sends low robots to charge.
 
     A robot a step holds is skipped, not waited for: waiting, the flush held the rows it had locked, and
     the steps of those robots queued behind the step it waited for (and two bridges' flushes never
@@ -103,28 +105,42 @@ def robot_status_write(*, columns: tuple[str, ...], rows: list[tuple[Any, ...]])
     names = [row[-1] for row in rows]
     with connection.cursor() as cursor:
         cursor.execute(_status_write_sql(columns), [list(values) for values in zip(*rows, strict=True)])
-        written = {name for (name,) in cursor.fetchall()}
+        results = cursor.fetchall()
+        if any(ran_low for _, ran_low in results):
+            request_assignment()  # the run that sends robots to charge (missions.trips)
+        written = {name for name, _ in results}
         if len(written) == len(names):
             return set()
         cursor.execute(ROBOTS_BY_NAME_SQL, [[name for name in names if name not in written]])
         return {name for (name,) in cursor.fetchall()}
 
 
+# A robot's battery at or below this is low: it goes to charge (dispatch.stations.Battery.low).
+LOW_BATTERY_SQL = "GREATEST(r.battery_critical_level, COALESCE(r.battery_recommended_minimum, 0))"
+
+
 @cache
 def _status_write_sql(columns: tuple[str, ...]) -> str:
-    """One array per column (then the names): the same statement whatever the number of robots."""
+    """One array per column (then the names): the same statement whatever the number of robots. It returns
+    each robot written, and whether that write took its battery from above its low mark to it or below
+    (the old level is the locked row's, read before the update)."""
     fields = [Robot._meta.get_field(column) for column in (*columns, "name")]
     arrays = ", ".join(f"%s::{field.db_type(connection)}[]" for field in fields)
     quoted = [connection.ops.quote_name(field.column) for field in fields]
     assignments = ", ".join(f"{column} = v.{column}" for column in quoted[:-1])
     table = Robot._meta.db_table
+    ran_low = (
+        f"f.battery_level > {LOW_BATTERY_SQL} AND r.battery_level <= {LOW_BATTERY_SQL}"
+        if "battery_level" in columns
+        else "false"
+    )
     return f"""
         WITH status AS (SELECT * FROM unnest({arrays}) AS v({", ".join(quoted)})),
             free AS (
-                SELECT name FROM {table} WHERE name IN (SELECT name FROM status)
+                SELECT name, battery_level FROM {table} WHERE name IN (SELECT name FROM status)
                 FOR NO KEY UPDATE SKIP LOCKED
             )
         UPDATE {table} AS r SET {assignments}
-        FROM status AS v WHERE r.name = v.name AND r.name IN (SELECT name FROM free)
-        RETURNING r.name
+        FROM status AS v, free AS f WHERE r.name = v.name AND r.name = f.name
+        RETURNING r.name, {ran_low}
     """

@@ -10,9 +10,10 @@ from vda5050.versions import SUPPORTED_VERSIONS
 
 DEFAULT_MAP_ID = "map"
 DEFAULT_BATTERY = 20.0
-# Percent per metre driven: none by default. Robots do not yet drive to a charger by themselves (README,
-# "Stations"), so a battery that drained would leave a simulated fleet below its critical level, taking no
-# missions, within minutes; 0.5 takes a full battery to a fifth in 160 m, under three minutes at 1 m/s.
+# Percent per metre driven: none by default. Robots drive to a charger by themselves only where one exists
+# (README, "Stations: charging and parking"), so without one a battery that drained would leave a simulated
+# fleet below its critical level, taking no missions, within minutes; 0.5 takes a full battery to a fifth in
+# 160 m, under three minutes at 1 m/s.
 DEFAULT_BATTERY_DRAIN = 0.0
 # Percent per second while charging: 20 % to 100 % in 40 s.
 DEFAULT_CHARGE_RATE = 2.0

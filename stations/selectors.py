@@ -22,3 +22,7 @@ def station_list(*, filters: Mapping[str, Any] | None = None) -> QuerySet[Statio
     if not filterset.is_valid():
         raise QueryValidationError.from_form_errors(filterset.errors)
     return filterset.qs
+
+
+def stations_exist() -> bool:
+    return Station.objects.exists()

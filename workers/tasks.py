@@ -15,7 +15,9 @@ from changes.services import changes_trim
 from kit.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished, missions_assign
+from missions.trips import stations_plan_run
 from robots.status import robot_check_heartbeats
+from stations.selectors import stations_exist
 from workers.long_lived import keep_trying, retry_delay, settle_long_lived_process
 from workers.step_requests import (
     ASSIGN_TASK,
@@ -60,7 +62,8 @@ _reasons_refreshed_at = -math.inf
 def assign_missions() -> None:
     """Bind unbound missions to free capable robots, with the waiting reasons when beat asks (a run that
     reads every robot) or this process has not brought them up to date for `ASSIGNMENT_CHECK_SECONDS`; a
-    burst still arriving is run again later. The marker goes first: a request made during the run queues
+    burst still arriving is run again later. Then send robots to charge or park (the same wake-ups concern
+    both: a robot freed, back online, changed). The marker goes first: a request made during the run queues
     one more, which sees what this one may have read too early."""
     global _reasons_refreshed_at
     reasons_asked = assignment_run_started()
@@ -72,14 +75,18 @@ def assign_missions() -> None:
     assignment_run_finished(idle_robots=run.idle_robots)
     if run.hold is not None:
         queue_assignment(countdown=run.hold)
+    stations_plan_run()
 
 
 @shared_task(name="fleet.assign_waiting", ignore_result=True)
 def assign_waiting() -> None:
     """Beat's safety net for assignment: a run while unbound missions wait, whatever wake-up was lost (or
-    a robot became free in a way nothing asks a run for: charged, out of teleop, its error cleared)."""
+    a robot became free in a way nothing asks a run for: charged, out of teleop, its error cleared); and
+    the stations' clock while there are stations (batteries run low and fill up without a wake-up)."""
     if mission_selectors.unbound_missions_wait():
         queue_assignment(with_reasons=True)
+    elif stations_exist():
+        queue_assignment()
 
 
 class NotifyFailedRetryably(Exception):

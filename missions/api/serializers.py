@@ -22,7 +22,7 @@ from kit.api.fields import (
     validate_positive,
 )
 from kit.api.serializers import ObjectNameSerializer, Pose2DSerializer, SpecSerializer, StrictSerializer
-from missions.choices import FailureCategory, Lifecycle, MissionState
+from missions.choices import FailureCategory, Lifecycle, MissionPurpose, MissionState
 from missions.filters import MOST_RECENT_MAX
 from missions.models import Mission
 from missions.services import PRIORITY_MAX, PRIORITY_MIN
@@ -211,6 +211,7 @@ def schema_constraints(result: dict, generator: Any, request: Any, public: bool)
 
 # --- the mission -------------------------------------------------------------------------------------------
 
+
 def _names_field(help_text: str) -> serializers.ListField:
     return serializers.ListField(
         child=JsonStringField(),
@@ -340,6 +341,13 @@ class MissionSerializer(MissionSpecSerializer):
     """A mission: its spec fields (the tree normalized), name, status and lifecycle."""
 
     name = serializers.CharField()
+    purpose = serializers.ChoiceField(
+        choices=MissionPurpose.choices,
+        allow_null=True,
+        help_text="A trip the dispatch core made itself (README \"Stations: charging and parking\"): CHARGE "
+        "(a route to a charger, then startCharging) or PARK (a route to a parking station); null for a "
+        "client's mission.",
+    )
     status = MissionStatusSerializer(source="*")
     lifecycle = serializers.ChoiceField(choices=Lifecycle.choices)
 
@@ -364,6 +372,7 @@ class MissionSerializer(MissionSpecSerializer):
             "priority": instance.priority,
             "robot_selector": instance.robot_selector,
             "name": instance.name,
+            "purpose": instance.purpose,
             "status": {
                 "state": instance.state,
                 "current_node": instance.current_node,

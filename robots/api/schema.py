@@ -55,6 +55,8 @@ ROBOT_EXAMPLE = OpenApiExample(
             "info_messages": None,
             "errors": {},
             "maps": [],
+            "charge_requested": False,
+            "charging_waiting_reason": None,
         },
         "lifecycle": "ALIVE",
     },
@@ -177,6 +179,35 @@ ROBOT_TELEOP = dict(
                 value={
                     "message": "Robot carter01 is in CHARGING and request cannot be satisfied: "
                     "teleop can only start from IDLE, MAP_DEPLOYMENT, ON_TASK, TELEOP.",
+                    "error_code": "USAGE",
+                },
+                status_codes=["400"],
+            ),
+        ),
+    },
+    filters=False,
+)
+
+ROBOT_CHARGE = dict(
+    operation_id="robot_charge",
+    summary="Send a robot to charge now",
+    description=(
+        'Whatever its battery, the robot is sent to the nearest free charger it may use (README "Stations: '
+        'charging and parking"): the charger is reserved for it, then a CHARGE mission goes ahead of its '
+        "queue (after its running mission, if any). Until then status.charging_waiting_reason says why it "
+        "waits (no free charger, ...). Refused for a robot offline, charging already, or whose factsheet "
+        "lists no startCharging."
+    ),
+    request=None,
+    responses={
+        200: OpenApiResponse(RobotSerializer, examples=[ROBOT_EXAMPLE]),
+        400: bad_request(
+            NOT_FOUND_EXAMPLE,
+            OpenApiExample(
+                "Cannot charge",
+                value={
+                    "message": "Robot carter01 cannot be sent to charge: its factsheet lists no "
+                    "startCharging.",
                     "error_code": "USAGE",
                 },
                 status_codes=["400"],

@@ -39,12 +39,21 @@ def _model_default(field: str) -> Any:
 
 class BatterySpecSerializer(StrictSerializer):
     critical_level = NumberField(
-        default=_model_default("battery_critical_level"), help_text="Stored, unused."
+        default=_model_default("battery_critical_level"),
+        help_text="Battery level below which the robot takes no mission but its trip to a charger; where "
+        "recommended_minimum is null, at or below it an idle robot is sent to charge.",
     )
     recommended_minimum = NumberField(
-        allow_null=True, default=None, help_text="Battery level below which the robot should charge."
+        allow_null=True,
+        default=None,
+        help_text="Battery level at or below which an idle robot is sent to the nearest free charger.",
     )
-    recommended_maximum = NumberField(allow_null=True, default=None, help_text="Stored, unused.")
+    recommended_maximum = NumberField(
+        allow_null=True,
+        default=None,
+        help_text="Battery level at which a robot charging at a charger is sent stopCharging; null: it "
+        "charges until it reports charging ended.",
+    )
 
 
 class Vda5050IdentitySerializer(StrictSerializer):
@@ -268,6 +277,15 @@ class RobotStatusSerializer(serializers.Serializer):
     )
     zone_sets = RobotZoneSetSerializer(
         many=True, help_text="The zone sets the robot reports (VDA 5050 3.0); empty if it reports none."
+    )
+    charge_requested = serializers.BooleanField(
+        help_text="Asked to charge now (POST /robot/{name}/charge) and not yet holding a charger."
+    )
+    charging_waiting_reason = serializers.CharField(
+        allow_null=True,
+        help_text="Why the robot, at or below its recommended minimum or asked to charge, has no charging "
+        "trip: no free charger, no charger it may use on its map, its factsheet lists no startCharging, "
+        "...; null otherwise.",
     )
 
     @extend_schema_field(Pose2DSerializer)

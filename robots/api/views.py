@@ -23,7 +23,14 @@ from robots.choices import TeleopAction
 from robots.filters import RobotFilter
 from robots.models import Robot
 from robots.selectors import robot_get, robot_list, robot_map_actions
-from robots.services import robot_create, robot_delete, robot_map_action, robot_teleop, robot_update_spec
+from robots.services import (
+    robot_charge,
+    robot_create,
+    robot_delete,
+    robot_map_action,
+    robot_teleop,
+    robot_update_spec,
+)
 
 # What the streams show of robots (GET /robot/watch, GET /events): GET /robot's filters, GET
 # /robot/{name}'s JSON.
@@ -74,6 +81,12 @@ class RobotViewSet(WatchedViewSet):
         teleop_action = TeleopAction(query["params"])
         robot_teleop(actor=request_actor(request), robot=robot_get(name=name), action=teleop_action)
         return Response(f"{teleop_action} teleop action received.")
+
+    @extend_schema(**schema.ROBOT_CHARGE)
+    @action(detail=True, methods=["post"])
+    def charge(self, request: Request, name: str) -> Response:
+        robot = robot_charge(actor=request_actor(request), robot=robot_get(name=name))
+        return Response(RobotSerializer(robot).data)
 
     @extend_schema(**schema.ROBOT_MAPS)
     @extend_schema(**schema.ROBOT_MAP_ACTION)

@@ -43,7 +43,13 @@ WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 
 @pytest.fixture(autouse=True)
 def objects() -> None:
-    RobotFactory(name=NAME, protocol_version="2.1.0")  # a robot with maps
+    # A robot with maps, online and able to charge (POST /robot/acc1/charge).
+    RobotFactory(
+        name=NAME,
+        protocol_version="2.1.0",
+        online=True,
+        factsheet={"protocolFeatures": {"agvActions": [{"actionType": "startCharging"}]}},
+    )
     MissionFactory(name=NAME, robot=NAME)
     StationFactory(name=NAME)
     ZoneSetFactory(name=NAME)
@@ -74,6 +80,7 @@ def test_the_walk_finds_every_endpoint_of_the_reference_and_ours():
         "POST /robot",
         "PUT /robot/acc1",
         "POST /robot/acc1/teleop",
+        "POST /robot/acc1/charge",
         "GET /robot/acc1/map",
         "POST /robot/acc1/map",
         "POST /mission/acc1/cancel",

@@ -4,6 +4,7 @@ from datetime import timedelta
 
 import pytest
 
+from dispatch.stations import CHARGING
 from dispatch.vocabulary import MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
@@ -188,17 +189,27 @@ def test_charging_state_is_kept_when_no_state_is_known() -> None:
     assert result.robot_state == RobotState.CHARGING
 
 
-def test_a_charging_robot_takes_a_mission_and_goes_back_to_charging_after_it() -> None:
-    dispatcher = started(state=robot_state(charging=True))
+def test_a_charging_robot_takes_no_mission_until_it_stops_charging() -> None:
+    waiting = checked_step(
+        state=robot_state(charging=True), mission=mission(), robot=robot_view(state=RobotState.IDLE)
+    )
+
+    assert (waiting.robot_state, waiting.mission.state) == (RobotState.CHARGING, MissionState.PENDING)
+    assert waiting.mission.waiting_reason == CHARGING
+
+    stopped = checked_step(
+        state=robot_state(charging=False), mission=mission(), robot=robot_view(state=RobotState.CHARGING)
+    )
+    assert (stopped.robot_state, stopped.mission.state) == (RobotState.ON_TASK, MissionState.RUNNING)
+
+
+def test_a_mission_that_ends_with_its_robot_charging_leaves_it_charging() -> None:
+    dispatcher = started(state=robot_state(charging=False))
     assert dispatcher.results[0].robot_state == RobotState.ON_TASK
 
-    at_the_end = finished(dispatcher.order, charging=True)
-    done = dispatcher.step(at_the_end, after=1.0)
-    assert (dispatcher.mission.state, done.robot_state) == (MissionState.COMPLETED, RobotState.IDLE)
+    done = dispatcher.step(finished(dispatcher.order, charging=True), after=1.0)
 
-    dispatcher.mission = None  # the caller's queue is empty
-    after = dispatcher.step(at_the_end, after=1.0)
-    assert after.robot_state == RobotState.CHARGING
+    assert (dispatcher.mission.state, done.robot_state) == (MissionState.COMPLETED, RobotState.CHARGING)
 
 
 @pytest.mark.parametrize("mode", [OperatingMode.MANUAL, OperatingMode.SERVICE, OperatingMode.TEACHIN])

@@ -5,8 +5,9 @@ from typing import Any
 
 import pytest
 
+from dispatch.stations import CHARGING
 from dispatch.step import DEADLINE_PASSED
-from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
+from dispatch.vocabulary import FailureCategory, Lifecycle, MissionPurpose, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
     MISSION,
@@ -32,6 +33,7 @@ from vda5050.models import ActionStatus, ActionType, ErrorLevel, OperatingMode
         pytest.param({"online": False}, IDLE_STATE, [], "Robot is offline", id="offline"),
         pytest.param({}, None, [], "Robot is offline", id="no-state-yet"),
         pytest.param({"state": RobotState.TELEOP}, IDLE_STATE, [], "Robot is in teleop", id="teleop"),
+        pytest.param({"state": RobotState.CHARGING}, robot_state(charging=True), [], CHARGING, id="charging"),
         pytest.param(
             {"lifecycle": Lifecycle.PENDING_DELETE},
             IDLE_STATE,
@@ -102,7 +104,6 @@ def test_a_queued_mission_waits_and_says_why(
         pytest.param(
             robot_state(order_id="old", action_states=[("a1", ActionStatus.FAILED)]), id="old-action-final"
         ),
-        pytest.param(robot_state(charging=True), id="charging"),
     ],
 )
 def test_a_queued_mission_starts_whenever_the_robot_can_take_it(state) -> None:
@@ -110,6 +111,17 @@ def test_a_queued_mission_starts_whenever_the_robot_can_take_it(state) -> None:
 
     assert result.mission.state == MissionState.RUNNING
     assert len(orders_sent(result)) == 1
+
+
+def test_a_charging_trip_starts_below_the_critical_level_where_other_missions_wait() -> None:
+    low = robot_state(battery=5.0)
+
+    trip = checked_step(state=low, mission=mission(purpose=MissionPurpose.CHARGE))
+    parking = checked_step(state=low, mission=mission(purpose=MissionPurpose.PARK))
+
+    assert trip.mission.state == MissionState.RUNNING and len(orders_sent(trip)) == 1
+    assert parking.mission.state == MissionState.PENDING
+    assert parking.mission.waiting_reason.startswith("Battery 5% is below")
 
 
 def test_a_waiting_reason_is_cleared_when_the_mission_starts() -> None:

@@ -10,12 +10,15 @@ from hypothesis import strategies as st
 
 from dispatch.stations import (
     CHARGING,
+    GOT_MISSION,
     NO_CHARGER,
     NO_FREE_CHARGER,
     NO_POSE,
     NO_START_CHARGING,
     NOT_IDLE,
     OFFLINE,
+    RETRY_LATER,
+    TRIP_FAILED,
     Battery,
     Pose,
     StationRobot,
@@ -132,6 +135,18 @@ CHARGING_CASES = {
         {},
         {"r1": NO_CHARGER},
     ),
+    "a failed trip's backoff not yet over": (
+        [robot("r1", 20, retry_at=NOW + timedelta(seconds=1)), robot("r2", 21, retry_at=NOW)],
+        [station("c1"), station("c2")],
+        {"r2": "c1"},
+        {"r1": RETRY_LATER},
+    ),
+    "an operator's charge now goes first, whatever its battery": (
+        [robot("low", 5), robot("asked", 95, charge_now=True)],
+        [station("c1")],
+        {"asked": "c1"},
+        {"low": NO_FREE_CHARGER},
+    ),
     "waiting reasons, the first that holds": (
         [
             robot("offline", 20, online=False),
@@ -173,6 +188,24 @@ def test_a_parked_low_robot_leaves_its_parking_place_for_a_charger():
     assert result.reservations == {"c1": ("r1",), "p1": ()}
 
 
+def test_a_charger_whose_trip_failed_is_released_and_the_next_robot_gets_it():
+    result = plan(
+        [robot("failed", 20, trip_failed=True, retry_at=NOW + timedelta(seconds=10)), robot("next", 25)],
+        [station("c1", reservations=("failed",))],
+    )
+
+    assert [(release.robot, release.reason) for release in result.releases] == [("failed", TRIP_FAILED)]
+    assert {trip.robot: trip.station for trip in result.charging_trips} == {"next": "c1"}
+    assert result.waiting == {"failed": RETRY_LATER}
+
+
+def test_a_parked_robot_that_ran_a_mission_since_leaves_its_place_even_if_idle_again():
+    result = plan([robot("r1", left_parking=True)], [station("p1", kind=PARKING, reservations=("r1",))])
+
+    assert result.reservations == {"p1": ()}
+    assert [(release.robot, release.reason) for release in result.releases] == [("r1", GOT_MISSION)]
+
+
 # --- stopping ----------------------------------------------------------------------------------------------
 
 STOP_CASES = {
@@ -182,6 +215,10 @@ STOP_CASES = {
     "no maximum: while charging": (
         robot("r1", 99, at_station=True, battery={"recommended_maximum": None, "charging": True}),
         False,
+    ),
+    "below it but no longer charging (restarted, unplugged)": (
+        robot("r1", 50, at_station=True, battery={"charging": False}),
+        True,
     ),
     "no maximum: charging ended": (
         robot("r1", 99, at_station=True, battery={"recommended_maximum": None, "charging": False}),

@@ -31,7 +31,7 @@ CHOICES = {
 }
 
 
-def test_the_vocabulary_has_the_seven_concepts_and_each_has_its_django_choices():
+def test_the_vocabulary_has_the_eight_concepts_and_each_has_its_django_choices():
     assert set(VOCABULARY) == {
         "MissionState",
         "NodeKind",
@@ -40,6 +40,7 @@ def test_the_vocabulary_has_the_seven_concepts_and_each_has_its_django_choices()
         "Lifecycle",
         "AgvClass",
         "StationKind",
+        "MissionPurpose",
     }
     assert {choices.__name__ for choices in CHOICES.values()} == set(VOCABULARY)
 

@@ -286,3 +286,23 @@ def test_an_api_call_refused_for_an_ended_session_asks_for_a_login(fleet: FleetP
     tried = len(opened)
     fleet.page.wait_for_timeout(3_000)  # more than the stream's retry (FLEET_EVENTS_RETRY_SECONDS)
     assert len(opened) == tried <= 1
+
+
+def test_stations_are_drawn_with_who_holds_them_and_a_charging_robot_in_its_colour(
+    fleet: FleetPage, api, simulator: Callable[..., Simulator], unique
+):
+    robot, charger, parking = unique("low"), unique("charger"), unique("parking")
+    simulator(f"{robot},0,0,0,map,,20")  # at 20 %, below the minimum it gets: it goes to charge
+    create_robot(api, robot, battery={"recommended_minimum": 30, "recommended_maximum": 90})
+    expect(fleet.marker(robot)).to_have_count(1)  # the page shows the robots' map
+    for name, kind, x in ((parking, "PARKING", -3), (charger, "CHARGER", 3)):
+        body = {"name": name, "kind": kind, "pose": {"x": x, "y": 0, "theta": 0, "map_id": "map"}}
+        assert api.post("/station", body, format="json").status_code == 200
+
+    free = fleet.page.locator(f'.station[data-station="{parking}"]')
+    expect(free).to_have_attribute("title", f"{parking}: PARKING, 0/1 held")
+    expect(free).to_have_attribute("data-held", "no")
+    held = fleet.page.locator(f'.station[data-station="{charger}"]')
+    expect(held).to_have_attribute("title", f"{charger}: CHARGER, 1/1 held by {robot}")
+    expect(held).to_have_attribute("data-held", "yes")
+    expect(fleet.marker(robot)).to_have_attribute("data-condition", "charging")

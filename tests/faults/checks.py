@@ -360,8 +360,10 @@ def check_leaves(
     blind: Sequence[Window],
     origin: float | None = None,
     restarts: Sequence[Window] = (),
+    trips: frozenset[str] = frozenset(),
 ) -> CheckResult:
-    """Each mission's leaves are reached in order and never twice.
+    """Each mission's leaves are reached in order and never twice (`trips`: the charging and parking
+    missions the dispatch core made, whose orders are left out).
 
     API: a COMPLETED mission has every node (and root) COMPLETED in node_status. Wire: in arrival order,
     a mission's orders never go back to an earlier leaf, each leaf has a single orderId (a second attempt
@@ -383,6 +385,8 @@ def check_leaves(
             continue
         order_id = carried_leaf(message.data)
         parsed = parse_order_id(order_id)
+        if parsed is not None and parsed[0] in trips:
+            continue
         if parsed is None or parsed[0] not in by_name:
             result.problems.append(f"robot {message.serial}: order {order_id} of no posted mission")
             continue
@@ -652,4 +656,67 @@ def check_processes(
         if not running:
             result.problems.append(f"{name} is not running at the end of the run")
     result.notes.append(f"{len(running_at_end)} processes watched")
+    return result
+
+
+# --- 9. stations (issue 44) ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class StationSample:
+    """A station as GET /station showed it at `t`: the robots holding it, of its capacity."""
+
+    t: float
+    name: str
+    kind: str
+    capacity: int
+    reservations: tuple[str, ...]
+
+
+def check_station_capacity(samples: Sequence[StationSample], origin: float | None = None) -> CheckResult:
+    """No station ever held more robots than its capacity, and no robot held two stations at once, in any
+    answer of GET /station (one answer is one snapshot of every station)."""
+    result = CheckResult("no station over capacity")
+    by_time: dict[float, list[StationSample]] = defaultdict(list)
+    for sample in samples:
+        by_time[sample.t].append(sample)
+        if len(sample.reservations) > sample.capacity:
+            result.problems.append(
+                f"station {sample.name} held {len(sample.reservations)} robots "
+                f"({', '.join(sample.reservations)}) of its capacity {sample.capacity} "
+                f"at {_at(sample.t, origin)}"
+            )
+    for t, snapshot in sorted(by_time.items()):
+        holders = [robot for sample in snapshot for robot in sample.reservations]
+        twice = sorted({robot for robot in holders if holders.count(robot) > 1})
+        if twice:
+            result.problems.append(f"robots {twice} held two stations at once at {_at(t, origin)}")
+    result.notes.append(f"{len(by_time)} snapshots of {len({sample.name for sample in samples})} stations")
+    return result
+
+
+def check_low_robots_charge(
+    robots: Mapping[str, Mapping[str, Any]], stations: Sequence[StationSample]
+) -> CheckResult:
+    """At the end, no robot online at or below its minimum (its critical level where it has none) is left
+    without a charger while a charger has room: each holds one (on its way or charging) or none is free.
+    (The robots here may use every charger: one map, no robot types.)"""
+    result = CheckResult("no low robot without a charger while one is free")
+    chargers = [station for station in stations if station.kind == "CHARGER"]
+    holding = {robot for station in chargers for robot in station.reservations}
+    free = [station.name for station in chargers if len(station.reservations) < station.capacity]
+    low = 0
+    for name, robot in sorted(robots.items()):
+        status, battery = robot.get("status") or {}, robot.get("battery") or {}
+        minimum = battery.get("recommended_minimum")
+        threshold = max(battery.get("critical_level") or 0.0, minimum if minimum is not None else 0.0)
+        if not status.get("online") or status.get("battery_level", 100.0) > threshold:
+            continue
+        low += 1
+        if name not in holding and free:
+            result.problems.append(
+                f"robot {name} at {status.get('battery_level')} % (minimum {threshold}) holds no charger "
+                f"while {free} have room; it waits: {status.get('charging_waiting_reason')!r}"
+            )
+    result.notes.append(f"{low} robots low at the end, {len(chargers)} chargers")
     return result

@@ -16,6 +16,7 @@ from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 from tests.faults import checks
 from tests.faults.checks import CheckResult, ServiceEvent, Window
@@ -25,6 +26,9 @@ from tests.faults.stack import Stack, StackConfig, port_open, wait_until
 
 SEED_ENV = "FLEET_FAULT_SEED"
 # "simulator": every robot restarts (SIGKILL, then a fresh simulator with the robots where they last stood)
+# A low robot's battery spec: its minimum above the simulator's 20 %, so it goes to charge once idle, and
+# charges to 40 % (10 s at the simulator's 2 % per second).
+LOW_BATTERY = {"critical_level": 5.0, "recommended_minimum": 25.0, "recommended_maximum": 40.0}
 KINDS = ("api", "bridge", "worker", "beat", "notify", "postgres", "redis", "broker", "simulator")
 # A POST must get through within this long, faults or not (a fault keeps a service down 5 s at most).
 POST_GIVE_UP_SECONDS = 90.0
@@ -53,7 +57,10 @@ class RunConfig:
     fault_gap: tuple[float, float] = (5.0, 15.0)
     downtime: tuple[float, float] = (0.0, 5.0)
     settle_seconds: float = 3.0  # after the last mission ended, for the last messages to arrive
+    charge_settle_seconds: float = 30.0  # bound, after the missions, for low robots to get their chargers
     unbound_share: float = 0.25  # of the missions posted without a robot, for assignment to bind
+    chargers: int = 2  # chargers (capacity 1) among the robots (issue 44)
+    low_share: float = 0.5  # of the robots whose minimum is above the simulator's 20 %: they go to charge
 
 
 @dataclass(frozen=True)
@@ -191,16 +198,37 @@ class Reader(threading.Thread):
         self.api, self.missions, self.period = api, missions, period
         self.stopping = threading.Event()
         self.rng = random.Random(0)
+        self.stations: list[checks.StationSample] = []  # every answer of GET /station, for check 9
 
     def run(self) -> None:
         while not self.stopping.wait(self.period):
             mission = self.rng.choice(self.missions)
             path = f"/mission/{mission.name}" if self.rng.random() < 0.5 else f"/robot/{mission.robot}"
             self.api.request("GET", path, timeout=10)
+            attempt, data = self.api.request("GET", "/station", timeout=10)
+            if attempt.status == 200:
+                self.stations += station_samples(data, attempt.start)
 
     def stop(self) -> None:
         self.stopping.set()
         self.join(timeout=15)
+
+
+def station_samples(stations: list[dict[str, Any]], at: float) -> list[checks.StationSample]:
+    """An answer of GET /station (asked at `at`) as samples for the station checks."""
+    return [
+        checks.StationSample(at, s["name"], s["kind"], s["capacity"], tuple(s["status"]["reservations"]))
+        for s in stations
+    ]
+
+
+def stations_now(api: Api) -> list[checks.StationSample]:
+    at = time.time()
+    return station_samples(api.get("/station") or [], at)
+
+
+def robots_now(api: Api) -> dict[str, dict[str, Any]]:
+    return {robot["name"]: robot for robot in api.get("/robot") or []}
 
 
 def run(config: RunConfig, *, echo: bool = True) -> Outcome:
@@ -234,9 +262,17 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         try:
             observer.wait_subscribed()
             api = Api(stack.api_url, stack.api_token)
+            battery_rng = random.Random(f"batteries-{config.seed}")
             for robot in stack.robots:
-                if not api.post_retrying("/robot", {"name": robot.name}, give_up_after=60):
+                low = battery_rng.random() < config.low_share
+                body = {"name": robot.name, "battery": LOW_BATTERY if low else {}}
+                if not api.post_retrying("/robot", body, give_up_after=60):
                     raise RuntimeError(f"robot {robot.name} could not be created: {api.snapshot()[-1]}")
+            for index, robot in enumerate(stack.robots[: config.chargers]):
+                pose = {"x": robot.x + 1.0, "y": robot.y, "theta": 0.0, "map_id": robot.map_id}
+                body = {"name": f"charger{index}", "kind": "CHARGER", "pose": pose}
+                if not api.post_retrying("/station", body, give_up_after=60):
+                    raise RuntimeError(f"charger{index} could not be created: {api.snapshot()[-1]}")
 
             def all_online() -> bool:
                 robots = api.get("/robot") or []
@@ -287,12 +323,23 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
                 wait_until(all_ended, "every mission to end", timeout=config.quiet_seconds, period=2)
             except RuntimeError:
                 say(f"not every mission ended within {config.quiet_seconds:g} s of the faults stopping")
+            try:
+                wait_until(
+                    lambda: checks.check_low_robots_charge(robots_now(api), stations_now(api)).ok,
+                    "every low robot to hold a charger or wait for a full one",
+                    timeout=config.charge_settle_seconds,
+                    period=1,
+                )
+            except RuntimeError:
+                say(f"low robots without a charger {config.charge_settle_seconds:g} s after the missions")
             time.sleep(config.settle_seconds)
             reader.stop()
             waited = time.time() - faults_end
             outcome.durations["quiet"] = waited
             final_list = api.get("/mission") or []
             final = {m["name"]: m for m in final_list if m["name"] in names}
+            trips = frozenset(m["name"] for m in final_list if m.get("purpose") is not None)
+            stations_final = stations_now(api)
             for name in names - set(final):
                 final[name] = api.get(f"/mission/{name}")
             robots_final = {r["name"]: r for r in api.get("/robot") or []}
@@ -323,7 +370,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         checks.check_order_copies(messages, origin),
         checks.check_no_order_while_busy(messages, [*blind, *broker_down], origin),
         checks.check_leaves(
-            posted_missions, final, messages, [*blind, *broker_down], origin, restarts=restarts
+            posted_missions, final, messages, [*blind, *broker_down], origin, restarts=restarts, trips=trips
         ),
         checks.check_bindings(posted_missions, final, messages),
         checks.check_header_ids(
@@ -331,6 +378,8 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         ),
         checks.check_http(attempts, events, grace=config.grace, origin=origin),
         checks.check_processes(exits, running_at_end, origin),
+        checks.check_station_capacity(reader.stations, origin),
+        checks.check_low_robots_charge(robots_final, stations_final),
     ]
     outcome.faults = injector.injected
     outcome.missions_posted = len(posted)

@@ -13,6 +13,7 @@ from tests.faults.checks import (
     PostedMission,
     ProcessExit,
     ServiceEvent,
+    StationSample,
     Window,
     WireMessage,
 )
@@ -523,3 +524,55 @@ def test_a_share_of_the_planned_missions_is_unbound():
     assert [m.robot for m in plan_missions(random.Random(1), robots, 20)] == [
         m.robot for m in plan_missions(random.Random(1), robots, 20, unbound_share=0.0)
     ]
+
+
+def station(
+    name: str, *holders: str, t: float = 1.0, capacity: int = 1, kind: str = "CHARGER"
+) -> StationSample:
+    return StationSample(t, name, kind, capacity, holders)
+
+
+def test_stations_within_capacity_and_each_robot_at_one_pass():
+    samples = [station("c1", "r1", t=1), station("c2", t=1), station("c1", t=2), station("c2", "r1", t=2)]
+
+    assert checks.check_station_capacity(samples).ok
+
+
+def test_a_station_over_capacity_or_a_robot_at_two_fails():
+    over = checks.check_station_capacity([station("c1", "r1", "r2", capacity=1)])
+    twice = checks.check_station_capacity([station("c1", "r1"), station("p1", "r1", kind="PARKING")])
+
+    assert len(over.problems) == 1 and "c1 held 2 robots (r1, r2) of its capacity 1" in over.problems[0]
+    assert len(twice.problems) == 1 and "['r1'] held two stations" in twice.problems[0]
+
+
+def low_robot(level: float, *, online: bool = True, minimum: float | None = 30.0) -> dict[str, Any]:
+    return {
+        "battery": {"critical_level": 10.0, "recommended_minimum": minimum},
+        "status": {"online": online, "battery_level": level, "charging_waiting_reason": "no free charger"},
+    }
+
+
+def test_low_robots_holding_chargers_or_with_none_free_pass():
+    robots = {
+        "r1": low_robot(20),
+        "r2": low_robot(25),
+        "ok": low_robot(80),
+        "away": low_robot(5, online=False),
+    }
+
+    assert checks.check_low_robots_charge(robots, [station("c1", "r1")]).ok  # r2 waits: c1 is full
+    assert checks.check_low_robots_charge({"r1": low_robot(20)}, [station("c1", "r1", capacity=2)]).ok
+
+
+def test_a_low_robot_without_a_charger_while_one_is_free_fails():
+    robots = {
+        "r1": low_robot(20),
+        "critical": low_robot(9, minimum=None),
+        "above": low_robot(11, minimum=None),
+    }
+
+    result = checks.check_low_robots_charge(robots, [station("c1"), station("p1", kind="PARKING")])
+
+    assert [problem.split(" at ")[0] for problem in result.problems] == ["robot critical", "robot r1"]
+    assert "['c1'] have room" in result.problems[0]

@@ -22,6 +22,7 @@ ENDPOINTS = {
     "/robot": {"get", "post"},
     "/robot/{name}": {"get", "put", "delete"},
     "/robot/{name}/teleop": {"post"},
+    "/robot/{name}/charge": {"post"},
     "/robot/{name}/map": {"get", "post"},
     "/mission": {"get", "post"},
     "/mission/{name}": {"get", "delete"},

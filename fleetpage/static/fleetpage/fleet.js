@@ -18,7 +18,10 @@ const NODE_FIELDS = new Set(["name", "parent"]); // a node's other non-null fiel
 const robots = new Map(); // name -> robot, as GET /robot/{name} has it
 const missions = new Map(); // name -> mission, as GET /mission/{name} has it; in the order first seen
 const running = new Map(); // robot name -> the name of its RUNNING mission
-const changed = { robots: new Set(), missions: new Set(), missionRobots: new Set(), maps: false };
+const stations = new Map(); // name -> the station as the stream last sent it
+const changed = {
+  robots: new Set(), missions: new Set(), missionRobots: new Set(), stations: new Set(), maps: false,
+};
 let frame = 0;
 let received = null; // names sent since the stream (re)opened: after a snapshot, the others are gone
 let snapshotDone = false;
@@ -86,6 +89,7 @@ function condition(robot) {
   if (!status.online) return "offline";
   if (Object.keys(status.errors ?? {}).length) return "error";
   if (status.state === "TELEOP") return "teleop";
+  if (status.state === "CHARGING") return "charging";
   if (status.state === "ON_TASK") return "mission";
   return "idle";
 }
@@ -146,6 +150,37 @@ const LOOKS = {
   battery: (parts, value) => { parts.battery.style.width = value; },
 };
 
+// A station: a square in its kind's colour at its pose, under the robots; its tooltip says who holds it.
+const stationLayer = L.layerGroup().addTo(map);
+const stationMarkers = new Map(); // station name -> L.Marker, for the stations on the map shown
+
+function drawStation(name) {
+  const station = stations.get(name);
+  let marker = stationMarkers.get(name);
+  if (!station || (station.pose.map_id || DEFAULT_MAP) !== shownMap) {
+    if (marker) stationLayer.removeLayer(marker);
+    stationMarkers.delete(name);
+    return;
+  }
+  const position = L.latLng(station.pose.y, station.pose.x);
+  if (!marker) {
+    const icon = L.divIcon({ className: "station", iconSize: [26, 26], html: '<div class="station-name"></div>' });
+    marker = L.marker(position, { icon, keyboard: false, interactive: false, zIndexOffset: -1000 });
+    stationLayer.addLayer(marker);
+    stationMarkers.set(name, marker);
+    marker.getElement().dataset.station = name;
+    marker.getElement().querySelector(".station-name").textContent = name;
+  } else if (!marker.getLatLng().equals(position)) {
+    marker.setLatLng(position);
+  }
+  const { reservations } = station.status;
+  const element = marker.getElement();
+  element.dataset.kind = station.kind;
+  element.dataset.held = reservations.length ? "yes" : "no";
+  element.title = `${name}: ${station.kind}, ${reservations.length}/${station.capacity} held` +
+    (reservations.length ? ` by ${reservations.join(", ")}` : "");
+}
+
 function updateMapChoice() {
   const counts = new Map();
   for (const robot of robots.values()) counts.set(mapOf(robot), (counts.get(mapOf(robot)) ?? 0) + 1);
@@ -164,6 +199,9 @@ function showMap(id) {
   shownMap = id;
   markerLayer.clearLayers();
   markers.clear();
+  stationLayer.clearLayers();
+  stationMarkers.clear();
+  for (const name of stations.keys()) drawStation(name);
   for (const name of robots.keys()) drawRobot(name);
   for (const name of robots.keys()) drawRoute(name);
   fitPending = true;
@@ -352,11 +390,12 @@ function connect() {
   url.searchParams.set("mission.most_recent", config.mission_snapshot);
   source = new EventSource(url);
   source.addEventListener("open", () => {
-    received = { robot: new Set(), mission: new Set() };
+    received = { robot: new Set(), mission: new Set(), station: new Set() };
     showStream("live");
   });
   source.addEventListener("robot", (event) => receive("robot", JSON.parse(event.data)));
   source.addEventListener("mission", (event) => receive("mission", JSON.parse(event.data)));
+  source.addEventListener("station", (event) => receive("station", JSON.parse(event.data)));
   source.addEventListener("snapshot_end", () => {
     forgetUnsent();
     snapshotDone = true;
@@ -418,6 +457,9 @@ function receive(kind, object) {
     if (!before || deleted || mapOf(before) !== mapOf(object)) changed.maps = true;
     deleted ? robots.delete(object.name) : robots.set(object.name, object);
     changed.robots.add(object.name);
+  } else if (kind === "station") {
+    deleted ? stations.delete(object.name) : stations.set(object.name, object);
+    changed.stations.add(object.name);
   } else {
     // A mission given back to assignment leaves its robot (robot null): that robot is redrawn too.
     const robotBefore = missions.get(object.name)?.robot ?? null;
@@ -440,6 +482,9 @@ function forgetUnsent() {
   }
   for (const [name, mission] of missions) {
     if (!received.mission.has(name)) receive("mission", { ...mission, lifecycle: "DELETED" });
+  }
+  for (const [name, station] of stations) {
+    if (!received.station.has(name)) receive("station", { ...station, lifecycle: "DELETED" });
   }
 }
 
@@ -464,6 +509,7 @@ function flush() {
   frame = 0;
   trimMissions();
   if (changed.maps) updateMapChoice();
+  for (const name of changed.stations) drawStation(name);
   for (const name of changed.robots) drawRobot(name);
   if (fitPending && snapshotDone && markers.size) {
     fitRobots();
@@ -483,6 +529,7 @@ function flush() {
   changed.robots.clear();
   changed.missions.clear();
   changed.missionRobots.clear();
+  changed.stations.clear();
   changed.maps = changed.list = changed.panel = false;
 }
 

@@ -57,6 +57,8 @@ def test_returns_the_robot_with_its_status(api):
         "errors": {},
         "maps": [{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
         "zone_sets": [{"map_id": "map", "zone_set_id": "floor1-v1", "zone_set_status": "ENABLED"}],
+        "charge_requested": False,
+        "charging_waiting_reason": None,
     }
 
 
