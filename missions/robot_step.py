@@ -39,7 +39,7 @@ from missions.rows import (
 from missions.services import mission_claim
 from missions.tuning import OUTBOX_LIMIT
 from robots import livestate
-from robots.choices import InstantActionsKey, SettingSource
+from robots.choices import InstantActionsKey, RobotState, SettingSource
 from robots.models import InstantAction, Robot
 from robots.selectors import robot_unfinished_instant_actions
 from robots.services import robot_rows_delete
@@ -355,7 +355,8 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             break
         ended_a_mission = True
         upcoming = upcoming or _current_missions(name, count=2)
-        if not upcoming and _unbound_seen.is_set():  # its next may be an unbound one
+        # Its next may be an unbound one, unless it ended the mission not idle (charging, in teleop).
+        if not upcoming and view.state == RobotState.IDLE and _unbound_seen.is_set():
             if mission_claim(robot=name) is not None:
                 upcoming = _current_missions(name, count=2)
             else:

@@ -213,7 +213,8 @@ CANDIDATE_ROBOTS_SQL = f"""
 FREE_ROBOTS_SQL = f"""{CANDIDATE_ROBOTS_SQL}
     WHERE {_MAY_WORK_SQL} AND r.battery_level >= r.battery_critical_level AND NOT {_BUSY_SQL}
 """
-CANDIDATE_ROBOT_SQL = f"{CANDIDATE_ROBOTS_SQL} WHERE r.name = %s"
+# One robot, locked: the robot that claims (its step holds the lock already).
+CANDIDATE_ROBOT_SQL = f"{CANDIDATE_ROBOTS_SQL} WHERE r.name = %s FOR UPDATE OF r"
 
 
 def unbound_missions_wait() -> bool:

@@ -343,24 +343,40 @@ LOCK_UNBOUND_SQL = f"""
       AND lifecycle = '{Lifecycle.ALIVE}'
     ORDER BY name FOR UPDATE SKIP LOCKED
 """
-LOCK_FIRST_UNBOUND_SQL = f"""
-    SELECT name FROM {Mission._meta.db_table}
-    WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
-      AND lifecycle = '{Lifecycle.ALIVE}'
-    ORDER BY array_position(%s::varchar[], name) LIMIT 1 FOR UPDATE SKIP LOCKED
-"""
-# Its snapshot is taken after the locks: a binding another run committed before this one locked the robot
-# is seen, and the robot is not bound twice. `robot IS NULL` again: a mission is never bound twice.
-BIND_SQL = f"""
-    UPDATE {Mission._meta.db_table} AS m
-    SET robot = b.robot, waiting_reason = NULL, updated_at = %s,
-        assignment = m.assignment || jsonb_build_array(
-            jsonb_build_object('robot', b.robot, 'bound_at', %s::text, 'released_at', NULL, 'reason', NULL)
-        )
-    FROM unnest(%s::varchar[], %s::varchar[]) AS b(name, robot)
-    WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
-      AND NOT {robot_busy_sql("b.robot")}
-    RETURNING m.name, m.robot
+
+
+def _bind_sql(bindings: str) -> str:
+    """Bind each mission of `bindings` (rows of name, robot) that is still unbound to its robot if that
+    robot is still free, recording the binding; parameters: updated_at and bound_at, then `bindings`' own.
+    Its snapshot is taken after the caller's locks: a binding another transaction committed before the
+    robot was locked is seen, and the robot is not bound twice. `robot IS NULL` again: a mission is never
+    bound twice."""
+    return f"""
+        UPDATE {Mission._meta.db_table} AS m
+        SET robot = b.robot, waiting_reason = NULL, updated_at = %s,
+            assignment = m.assignment || jsonb_build_array(
+                jsonb_build_object(
+                    'robot', b.robot, 'bound_at', %s::text, 'released_at', NULL, 'reason', NULL
+                )
+            )
+        FROM {bindings} AS b(name, robot)
+        WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
+          AND NOT {robot_busy_sql("b.robot")}
+        RETURNING m.name, m.robot
+    """
+
+
+BIND_SQL = _bind_sql("unnest(%s::varchar[], %s::varchar[])")
+# A claim binds its robot's best choice that no other claim holds (robots falling free together take
+# different missions). Parameters: the robot and its choices twice (the CTE's), updated_at, bound_at.
+CLAIM_SQL = f"""
+    WITH chosen AS (
+        SELECT name, %s::varchar FROM {Mission._meta.db_table}
+        WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
+          AND lifecycle = '{Lifecycle.ALIVE}'
+        ORDER BY array_position(%s::varchar[], name) LIMIT 1 FOR UPDATE SKIP LOCKED
+    )
+    {_bind_sql("chosen")}
 """
 # An unbound mission still queued at its deadline never starts, as one of a robot's queue (the step's
 # rule, `dispatch.step`): no robot's step sees it, so assignment's run ends it.
@@ -456,17 +472,15 @@ def mission_claim(*, robot: str) -> str | None:
     if not choices:
         return None
     with connection.cursor() as cursor:
-        # The best choice no other claim holds: robots falling free together take different missions.
-        cursor.execute(LOCK_FIRST_UNBOUND_SQL, [choices, choices])
+        cursor.execute(CLAIM_SQL, [robot, choices, choices, now, binding_time(now)])
         row = cursor.fetchone()
-    bound = _bind({row[0]: robot}, now, step=False) if row else {}
-    return next(iter(bound), None)
+    return row[0] if row else None
 
 
-def _bind(bindings: dict[str, str], now: datetime, *, step: bool = True) -> dict[str, str]:
+def _bind(bindings: dict[str, str], now: datetime) -> dict[str, str]:
     """Bind what `bindings` asks (mission -> robot) where the robot and mission are still free and no other
     transaction holds them (SKIP LOCKED: runs never wait for each other, nor deadlock, nor wait for a step);
-    the robots bound are stepped once this commits (`step`). Returns the bindings made."""
+    the robots bound are stepped once this commits. Returns the bindings made."""
     if not bindings:
         return {}
     with connection.cursor() as cursor:
@@ -478,6 +492,6 @@ def _bind(bindings: dict[str, str], now: datetime, *, step: bool = True) -> dict
             return {}
         cursor.execute(BIND_SQL, [now, binding_time(now), missions, [bindings[name] for name in missions]])
         bound = dict(cursor.fetchall())
-    if bound and step:
+    if bound:
         request_steps(sorted(set(bound.values())))
     return bound

@@ -166,9 +166,10 @@ def test_a_charging_robot_is_not_free_for_unbound_missions() -> None:
     route = {"route": {"waypoints": [{"x": 1.0, "y": 0.0, "map_id": "map"}]}}
     mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec={"mission_tree": [route]})
 
-    [candidate] = assignment_inputs().robots
+    [candidate] = assignment_inputs(free_only=False).robots
 
     assert not candidate.idle
+    assert assignment_inputs(free_only=True).robots == []
 
 
 @override_settings(DISPATCH_PARK_AFTER_SECONDS=60.0)
