@@ -12,6 +12,7 @@ from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
 from rest_framework import serializers
 
 from kit.api.errors import UsageError
+from kit.api.names import object_name_validator
 
 M = TypeVar("M", bound=Model)
 
@@ -81,6 +82,17 @@ def spec_validated(
         field = next((name for name in ("_".join(path), path[0]) if name in form.fields), None)
         form.add_error(field, message if field else f"{'.'.join(path)}: {message}")
     return serializer.validated_data if valid else {}
+
+
+class SpecAdminForm(forms.ModelForm):
+    """An admin form for an object's spec: its name checked as the API checks names, and `spec`, which the
+    subclass's `clean` fills (with `spec_validated`) in the services' shape."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        if "name" in self.fields:
+            self.fields["name"].validators.append(object_name_validator)
+        self.spec: dict[str, Any] = {}
 
 
 def pose_text(obj: Any) -> str:

@@ -16,13 +16,13 @@ from django.utils.safestring import SafeString
 from access.authentication import request_actor
 from kit.admin import (
     ServiceAdmin,
+    SpecAdminForm,
     call_service_for_each,
     delete_through_service,
     pose_text,
     serializer_errors,
     spec_validated,
 )
-from kit.api.names import object_name_validator
 from robots.api.serializers import MapActionRequestSerializer, RobotSpecSerializer, RobotVda5050Serializer
 from robots.choices import MapAction, SettingSource, TeleopAction
 from robots.models import Robot, RobotMapAction
@@ -101,7 +101,7 @@ def vda5050_spec(robot: Robot) -> dict[str, Any]:
     return spec
 
 
-class RobotAdminForm(forms.ModelForm):
+class RobotAdminForm(SpecAdminForm):
     """The spec part of a robot, checked by the API's own spec serializer so that the admin accepts exactly
     what the API accepts; `spec` then holds it in the services' shape."""
 
@@ -109,12 +109,6 @@ class RobotAdminForm(forms.ModelForm):
         model = Robot
         # The admin narrows this to the fields of the add or change page.
         fields = ("name", *SPEC_FIELDS)
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        if "name" in self.fields:
-            self.fields["name"].validators.append(object_name_validator)
-        self.spec: dict[str, Any] = {}
 
     def clean(self) -> dict[str, Any]:
         cleaned_data = super().clean()

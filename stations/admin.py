@@ -4,13 +4,11 @@ reservations are the dispatch core's; creating, changing and deleting go through
 from collections.abc import Iterable
 from typing import Any
 
-from django import forms
 from django.contrib import admin
 from django.http import HttpRequest
 
 from access.authentication import request_actor
-from kit.admin import ServiceAdmin, call_service_for_each, pose_text, spec_validated
-from kit.api.names import object_name_validator
+from kit.admin import ServiceAdmin, SpecAdminForm, call_service_for_each, pose_text, spec_validated
 from stations.api.serializers import StationSpecSerializer
 from stations.models import Station
 from stations.services import station_create, station_delete, station_update_spec
@@ -29,19 +27,13 @@ def station_spec(values: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-class StationAdminForm(forms.ModelForm):
+class StationAdminForm(SpecAdminForm):
     """The spec of a station, checked by StationSpecSerializer so that the admin accepts exactly what the
     API accepts; `spec` then holds it in the services' shape."""
 
     class Meta:
         model = Station
         fields = ("name", "kind", *POSE_FIELDS, "robot_types", "capacity")
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        if "name" in self.fields:
-            self.fields["name"].validators.append(object_name_validator)
-        self.spec: dict[str, Any] = {}
 
     def clean(self) -> dict[str, Any]:
         cleaned_data = super().clean()

@@ -5,14 +5,12 @@ deleting go through the services."""
 from collections.abc import Iterable
 from typing import Any
 
-from django import forms
 from django.contrib import admin
 from django.db.models import QuerySet
 from django.http import HttpRequest
 
 from access.authentication import request_actor
-from kit.admin import ServiceAdmin, call_service_for_each, spec_validated
-from kit.api.names import object_name_validator
+from kit.admin import ServiceAdmin, SpecAdminForm, call_service_for_each, spec_validated
 from zones.api.serializers import ZoneSetSpecSerializer
 from zones.models import ZoneSet
 from zones.services import zone_set_create, zone_set_delete, zone_set_disable, zone_set_enable
@@ -20,19 +18,13 @@ from zones.services import zone_set_create, zone_set_delete, zone_set_disable, z
 SPEC_FIELDS = ("map_id", "description", "zones")
 
 
-class ZoneSetAdminForm(forms.ModelForm):
+class ZoneSetAdminForm(SpecAdminForm):
     """A new zone set, checked by ZoneSetSpecSerializer so that the admin accepts exactly what the API
     accepts; `spec` then holds it in the services' shape."""
 
     class Meta:
         model = ZoneSet
         fields = ("name", *SPEC_FIELDS)
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        if "name" in self.fields:
-            self.fields["name"].validators.append(object_name_validator)
-        self.spec: dict[str, Any] = {}
 
     def clean(self) -> dict[str, Any]:
         cleaned_data = super().clean()
