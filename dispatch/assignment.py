@@ -68,7 +68,7 @@ NO_ACTION_TYPES = "No robot's factsheet lists action types {action_types}"
 NO_MAP = "Map {map_id} is not enabled on any capable robot"
 NO_MAPS_TOGETHER = "No capable robot has maps {map_ids} enabled together"
 NONE_ONLINE = "No capable robot is online"
-ALL_LOW_BATTERY = "Every capable robot's battery is below its critical level"
+ALL_LOW_BATTERY = "Every capable robot's battery is low (below its critical level, or due to charge)"
 ALL_BUSY = "Every capable robot is busy"
 WAITING_TURN = "Waiting for a higher-priority or older mission"
 

@@ -16,7 +16,14 @@ from django.utils import timezone
 from dispatch import engine
 from dispatch.assignment import CandidateRobot, Pose, QueueHead, RobotSelector, UnboundMission
 from dispatch.held import order_finished, order_lacked
-from dispatch.vocabulary import DEFAULT_NOTIFY_TIMEOUT, Lifecycle, MissionState, NodeKind, RobotState
+from dispatch.vocabulary import (
+    DEFAULT_NOTIFY_TIMEOUT,
+    Lifecycle,
+    MissionState,
+    NodeKind,
+    RobotState,
+    StationKind,
+)
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from missions.filters import MissionFilter
@@ -25,8 +32,9 @@ from missions.rows import robot_busy_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
+from stations.models import Station
 from vda5050 import maps
-from vda5050.models import MapStatus
+from vda5050.models import ActionType, MapStatus
 from vda5050.state import MODES_WITHOUT_ORDERS
 
 
@@ -190,6 +198,25 @@ _MAY_WORK_SQL = f"""
     )
 """
 _BUSY_SQL = robot_busy_sql("r.name")
+# Its battery lets it take a mission: above its critical level, and not due to charge — at or below its
+# recommended minimum (its critical level where it has none: `dispatch.stations.Battery.low`) with a
+# charger it may use on its map and `startCharging` in its factsheet. Such a robot falls idle and the
+# station plan sends it to charge, instead of its next mission taking it down to its critical level.
+_BATTERY_OK_SQL = f"""
+    r.battery_level >= r.battery_critical_level AND NOT (
+        r.battery_level <= GREATEST(r.battery_critical_level, r.battery_recommended_minimum)
+        AND COALESCE(
+            r.factsheet #> '{{protocolFeatures,agvActions}}',
+            r.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
+        ) @> '[{{"actionType": "{ActionType.START_CHARGING}"}}]'::jsonb
+        AND EXISTS (
+            SELECT 1 FROM {Station._meta.db_table} s
+            WHERE s.kind = '{StationKind.CHARGER}' AND s.lifecycle = '{Lifecycle.ALIVE}'
+              AND s.pose_map_id = r.pose_map_id
+              AND (s.robot_types = '[]'::jsonb OR s.robot_types ? r.agv_class)
+        )
+    )
+"""
 # Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
 # found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
 CANDIDATE_ROBOTS_SQL = f"""
@@ -200,7 +227,7 @@ CANDIDATE_ROBOTS_SQL = f"""
         ),
         r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
         r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
-        r.battery_level >= r.battery_critical_level, r.maps, {_BUSY_SQL},
+        {_BATTERY_OK_SQL}, r.maps, {_BUSY_SQL},
         CASE WHEN r.state = '{RobotState.IDLE}' THEN r.state_since END,
         head.priority, head.created_at
     FROM {Robot._meta.db_table} r
@@ -211,7 +238,7 @@ CANDIDATE_ROBOTS_SQL = f"""
     ) AS head ON true
 """
 FREE_ROBOTS_SQL = f"""{CANDIDATE_ROBOTS_SQL}
-    WHERE {_MAY_WORK_SQL} AND r.battery_level >= r.battery_critical_level AND NOT {_BUSY_SQL}
+    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND NOT {_BUSY_SQL}
 """
 # One robot, locked: the robot that claims (its step holds the lock already).
 CANDIDATE_ROBOT_SQL = f"{CANDIDATE_ROBOTS_SQL} WHERE r.name = %s FOR UPDATE OF r"

@@ -266,3 +266,27 @@ def test_a_robot_below_its_critical_level_starts_its_charging_trip(make_robot) -
     robot_step(name=created.name)
 
     assert Mission.objects.get(name=trip.name).state == MissionState.RUNNING
+
+
+@pytest.mark.parametrize(
+    ("charger", "free"),
+    [
+        ({}, False),  # a charger it may use: it charges first
+        ({"robot_types": ["FORKLIFT"]}, True),  # only a charger for other robots: it works on
+        ({"pose_map_id": "hall"}, True),  # only a charger on another map
+        (None, True),  # no charger at all
+    ],
+    ids=["usable_charger", "charger_for_others", "charger_elsewhere", "no_charger"],
+)
+def test_a_robot_due_to_charge_is_not_free_for_unbound_missions_while_a_charger_waits_for_it(
+    charger: dict[str, Any] | None, free: bool
+) -> None:
+    robot("low", level=25.0)  # at or below its minimum (30 %), above its critical level
+    if charger is not None:
+        StationFactory(name="c1", kind=StationKind.CHARGER, **{"pose_map_id": "map", **charger})
+    route = {"route": {"waypoints": [{"x": 1.0, "y": 0.0, "map_id": "map"}]}}
+    mission_create(actor=TEST_ACTOR, name="m1", prefix=None, spec={"mission_tree": [route]})
+
+    [candidate] = assignment_inputs(free_only=False).robots
+    assert candidate.battery_ok is free
+    assert [r.name for r in assignment_inputs(free_only=True).robots] == (["low"] if free else [])
