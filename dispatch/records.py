@@ -34,6 +34,7 @@ class RobotView:
     state: str
     online: bool
     battery_critical_level: float
+    charge_threshold: float | None = None  # at or below it, it charges first (`missions.rows`); None: never
     switch_teleop: bool = False  # teleop asked for through the API (not by a pause_order action)
     instant_actions_key: str = ACTIONS_KEY
     instant_actions_key_by_operator: bool = False  # then no compatibility rule changes it

@@ -204,8 +204,8 @@ def _why_not_start(
 
 def _why_unfit(robot: RobotView, state: State | None, *, charging_trip: bool = False) -> str | None:
     """Why the robot cannot take a mission until something outside the mission changes: it is being
-    deleted, offline, below its critical battery level (unless the mission is its trip to a charger) or
-    reports a FATAL error of its own. A mission assignment bound to it goes back to the pool
+    deleted, offline, below its critical battery level or due to charge (unless the mission is its trip to
+    a charger) or reports a FATAL error of its own. A mission assignment bound to it goes back to the pool
     (`StepResult.release`)."""
     if robot.lifecycle != Lifecycle.ALIVE:
         return "Robot is being deleted"
@@ -214,6 +214,9 @@ def _why_unfit(robot: RobotView, state: State | None, *, charging_trip: bool = F
     charge = state.battery_state.battery_charge
     if charge < robot.battery_critical_level and not charging_trip:
         return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
+    threshold = robot.charge_threshold
+    if threshold is not None and charge <= threshold and not charging_trip:
+        return f"Battery {charge:g}% is due to charge (at or below {threshold:g}%): it charges first"
     # A FATAL error about an earlier order ended that order's leaf; one about nothing in particular means
     # the robot itself cannot work until someone fixes it.
     fatal = [error for error in vda_state.fatal_errors(state) if not error.error_references]

@@ -35,6 +35,7 @@ from missions.rows import (
     mission_columns,
     mission_db_values,
     mission_row_delete,
+    robot_charge_threshold_sql,
 )
 from missions.services import mission_claim
 from missions.tuning import OUTBOX_LIMIT
@@ -63,6 +64,7 @@ ROBOT_FOR_STEP_SQL = f"""
         NOT r.compatibility_rules @> '[{{"rule": "{compat.Rule.ORDER_UPDATE_NOT_EXECUTED}"}}]'::jsonb,
         r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
+        {robot_charge_threshold_sql("r")},
         EXISTS (
             SELECT 1 FROM {InstantAction._meta.db_table} a
             WHERE a.robot_id = r.name
@@ -290,6 +292,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         next_instant_actions_header_id,
         outbox,
         *address,
+        charge_threshold,
         has_actions,
     ) = row
     outcome.address = RobotAddress(*address)
@@ -307,6 +310,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         state=robot_state,
         online=online,
         battery_critical_level=critical_level,
+        charge_threshold=charge_threshold,
         switch_teleop=switch_teleop,
         instant_actions_key=actions_key,
         instant_actions_key_by_operator=actions_key_by_operator,

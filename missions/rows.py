@@ -10,10 +10,12 @@ from typing import Any
 from django.db import connection
 from django.db.models import JSONField
 
-from dispatch.vocabulary import MissionState
+from dispatch.vocabulary import Lifecycle, MissionState, StationKind
 from kit.db import jsonb
 from missions.models import Mission
 from robots.models import Robot
+from stations.models import Station
+from vda5050.models import ActionType
 
 MISSION_FIELDS = {field.name: field for field in Mission._meta.concrete_fields}
 MISSION_JSON_FIELDS = frozenset(name for name, f in MISSION_FIELDS.items() if isinstance(f, JSONField))
@@ -65,6 +67,29 @@ def robot_busy_sql(robot: str) -> str:
               AND busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
               AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
         )
+    """
+
+
+def robot_charge_threshold_sql(robot: str) -> str:
+    """The battery level at or below which robot `robot` (a table alias) charges before any mission but its
+    trip to a charger: its recommended minimum (its critical level where it has none, as
+    `dispatch.stations.Battery.low`), where it can charge (`startCharging` in its factsheet) at a charger it
+    may use on its map; NULL where it cannot, or while its stored level is above it — then nothing else of
+    the robot is read (the step reads this on every step; its factsheet is large)."""
+    threshold = f"GREATEST({robot}.battery_critical_level, {robot}.battery_recommended_minimum)"
+    return f"""
+        CASE WHEN {robot}.battery_level <= {threshold}
+            AND COALESCE(
+                {robot}.factsheet #> '{{protocolFeatures,agvActions}}',
+                {robot}.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
+            ) @> '[{{"actionType": "{ActionType.START_CHARGING}"}}]'::jsonb
+            AND EXISTS (
+                SELECT 1 FROM {Station._meta.db_table} charger
+                WHERE charger.kind = '{StationKind.CHARGER}' AND charger.lifecycle = '{Lifecycle.ALIVE}'
+                  AND charger.pose_map_id = {robot}.pose_map_id
+                  AND (charger.robot_types = '[]'::jsonb OR charger.robot_types ? {robot}.agv_class)
+            )
+        THEN {threshold} END
     """
 
 

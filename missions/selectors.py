@@ -22,19 +22,17 @@ from dispatch.vocabulary import (
     MissionState,
     NodeKind,
     RobotState,
-    StationKind,
 )
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from missions.filters import MissionFilter
 from missions.models import Mission
-from missions.rows import robot_busy_sql
+from missions.rows import robot_busy_sql, robot_charge_threshold_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
-from stations.models import Station
 from vda5050 import maps
-from vda5050.models import ActionType, MapStatus
+from vda5050.models import MapStatus
 from vda5050.state import MODES_WITHOUT_ORDERS
 
 
@@ -198,25 +196,10 @@ _MAY_WORK_SQL = f"""
     )
 """
 _BUSY_SQL = robot_busy_sql("r.name")
-# Its battery lets it take a mission: above its critical level, and not due to charge — at or below its
-# recommended minimum (its critical level where it has none: `dispatch.stations.Battery.low`) with a
-# charger it may use on its map and `startCharging` in its factsheet. Such a robot falls idle and the
-# station plan sends it to charge, instead of its next mission taking it down to its critical level.
-_BATTERY_OK_SQL = f"""
-    r.battery_level >= r.battery_critical_level AND NOT (
-        r.battery_level <= GREATEST(r.battery_critical_level, r.battery_recommended_minimum)
-        AND COALESCE(
-            r.factsheet #> '{{protocolFeatures,agvActions}}',
-            r.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
-        ) @> '[{{"actionType": "{ActionType.START_CHARGING}"}}]'::jsonb
-        AND EXISTS (
-            SELECT 1 FROM {Station._meta.db_table} s
-            WHERE s.kind = '{StationKind.CHARGER}' AND s.lifecycle = '{Lifecycle.ALIVE}'
-              AND s.pose_map_id = r.pose_map_id
-              AND (s.robot_types = '[]'::jsonb OR s.robot_types ? r.agv_class)
-        )
-    )
-"""
+# Its battery lets it take a mission: above its critical level, and not due to charge (at or below the
+# level at which it charges first, `robot_charge_threshold_sql`): such a robot falls idle and the station
+# plan sends it to charge, instead of its next mission taking it down to its critical level.
+_BATTERY_OK_SQL = f"r.battery_level >= r.battery_critical_level AND {robot_charge_threshold_sql('r')} IS NULL"
 # Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
 # found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
 CANDIDATE_ROBOTS_SQL = f"""

@@ -124,6 +124,33 @@ def test_a_charging_trip_starts_below_the_critical_level_where_other_missions_wa
     assert parking.mission.waiting_reason.startswith("Battery 5% is below")
 
 
+def test_a_robot_due_to_charge_runs_its_charging_trip_and_nothing_else_until_charged() -> None:
+    due = robot_view(charge_threshold=30.0)  # it can charge at a charger it may use, at or below 30 %
+    low, charged = robot_state(battery=25.0), robot_state(battery=31.0)
+
+    waiting = checked_step(robot=due, state=low, mission=mission())
+    trip = checked_step(robot=due, state=low, mission=mission(purpose=MissionPurpose.CHARGE))
+    later = checked_step(robot=due, state=charged, mission=mission())
+    never_due = checked_step(robot=robot_view(), state=low, mission=mission())
+
+    assert waiting.mission.state == MissionState.PENDING and orders_sent(waiting) == []
+    assert (
+        waiting.mission.waiting_reason == "Battery 25% is due to charge (at or below 30%): it charges first"
+    )
+    assert trip.mission.state == MissionState.RUNNING
+    assert later.mission.state == never_due.mission.state == MissionState.RUNNING
+
+
+def test_a_mission_bound_to_a_robot_due_to_charge_goes_back_to_the_pool() -> None:
+    bound = mission(assignment=[{"robot": "r1", "bound_at": "t", "released_at": None, "reason": None}])
+
+    result = checked_step(
+        robot=robot_view(charge_threshold=30.0), state=robot_state(battery=25.0), mission=bound
+    )
+
+    assert result.release is not None and "due to charge" in result.release
+
+
 def test_a_waiting_reason_is_cleared_when_the_mission_starts() -> None:
     waiting = checked_step(state=robot_state(battery=5.0), mission=mission()).mission
 

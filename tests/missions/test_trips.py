@@ -290,3 +290,33 @@ def test_a_robot_due_to_charge_is_not_free_for_unbound_missions_while_a_charger_
     [candidate] = assignment_inputs(free_only=False).robots
     assert candidate.battery_ok is free
     assert [r.name for r in assignment_inputs(free_only=True).robots] == (["low"] if free else [])
+
+
+@pytest.mark.parametrize("with_charger", [True, False], ids=["charger", "no_charger"])
+def test_a_robot_due_to_charge_starts_no_mission_of_its_own_while_a_charger_waits_for_it(
+    make_robot, with_charger: bool
+) -> None:
+    created = make_robot(prefix="due")
+    Robot.objects.filter(name=created.name).update(
+        online=True,
+        battery_level=25.0,
+        battery_recommended_minimum=30.0,
+        pose_map_id="map",
+        last_state_at=timezone.now(),
+        factsheet=CAN_CHARGE,
+    )
+    if with_charger:
+        station("c1")
+    put_state(created, header_id=1, battery=25.0)
+    route = {"route": {"waypoints": [{"x": 1.0, "y": 0.0, "map_id": "map"}]}}
+    spec = {"robot": created.name, "mission_tree": [route]}
+    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec=spec)
+
+    robot_step(name=created.name)
+
+    mission = Mission.objects.get(name="own")
+    if with_charger:  # it waits for its trip, which the station plan sends next
+        assert mission.state == MissionState.PENDING
+        assert mission.waiting_reason == "Battery 25% is due to charge (at or below 30%): it charges first"
+    else:
+        assert mission.state == MissionState.RUNNING
