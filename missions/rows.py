@@ -70,6 +70,19 @@ def robot_busy_sql(robot: str) -> str:
     """
 
 
+def factsheet_actions_sql(robot: str) -> str:
+    """The action list of robot `robot`'s (a table alias) factsheet, under its 2.x or its 3.0 key."""
+    return f"""COALESCE(
+        {robot}.factsheet #> '{{protocolFeatures,agvActions}}',
+        {robot}.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
+    )"""
+
+
+def can_charge_sql(robot: str) -> str:
+    """Robot `robot`'s factsheet lists `startCharging`: a charging trip may be sent to it."""
+    return f"""{factsheet_actions_sql(robot)} @> '[{{"actionType": "{ActionType.START_CHARGING}"}}]'::jsonb"""
+
+
 def robot_charge_threshold_sql(robot: str) -> str:
     """The battery level at or below which robot `robot` (a table alias) charges before any mission but its
     trip to a charger: its recommended minimum (its critical level where it has none, as
@@ -78,11 +91,7 @@ def robot_charge_threshold_sql(robot: str) -> str:
     the robot is read (the step reads this on every step; its factsheet is large)."""
     threshold = f"GREATEST({robot}.battery_critical_level, {robot}.battery_recommended_minimum)"
     return f"""
-        CASE WHEN {robot}.battery_level <= {threshold}
-            AND COALESCE(
-                {robot}.factsheet #> '{{protocolFeatures,agvActions}}',
-                {robot}.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
-            ) @> '[{{"actionType": "{ActionType.START_CHARGING}"}}]'::jsonb
+        CASE WHEN {robot}.battery_level <= {threshold} AND {can_charge_sql(robot)}
             AND EXISTS (
                 SELECT 1 FROM {Station._meta.db_table} charger
                 WHERE charger.kind = '{StationKind.CHARGER}' AND charger.lifecycle = '{Lifecycle.ALIVE}'

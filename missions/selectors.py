@@ -6,7 +6,6 @@ from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 from typing import Any
 
-import orjson
 from django.conf import settings
 from django.db import connection
 from django.db.models import DateTimeField, ExpressionWrapper, F, Q, QuerySet, Value
@@ -25,9 +24,10 @@ from dispatch.vocabulary import (
 )
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
+from kit.db import json_column
 from missions.filters import MissionFilter
 from missions.models import Mission
-from missions.rows import robot_busy_sql, robot_charge_threshold_sql
+from missions.rows import factsheet_actions_sql, robot_busy_sql, robot_charge_threshold_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
@@ -203,11 +203,7 @@ _BATTERY_OK_SQL = f"r.battery_level >= r.battery_critical_level AND {robot_charg
 # Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
 # found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
 CANDIDATE_ROBOTS_SQL = f"""
-    SELECT r.name, r.labels, r.agv_class,
-        COALESCE(
-            r.factsheet #> '{{protocolFeatures,agvActions}}',
-            r.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
-        ),
+    SELECT r.name, r.labels, r.agv_class, {factsheet_actions_sql("r")},
         r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
         r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
         {_BATTERY_OK_SQL}, r.maps, {_BUSY_SQL},
@@ -306,11 +302,6 @@ def _unbound_missions(
     return missions, {row[0]: row[5] for row in rows}
 
 
-def _json(value: Any) -> Any:
-    """A JSON column read by plain SQL: Django leaves it undecoded."""
-    return orjson.loads(value) if isinstance(value, str | bytes) else value
-
-
 def _unbound_mission(
     name: str,
     priority: int,
@@ -319,9 +310,11 @@ def _unbound_mission(
     mission_tree: Any,
     update_nodes: Any,
 ) -> UnboundMission:
-    selector = _json(selector) or {}
+    selector = json_column(selector) or {}
     try:
-        tree = engine.apply_route_updates(engine.parse_tree(_json(mission_tree)), _json(update_nodes))
+        tree = engine.apply_route_updates(
+            engine.parse_tree(json_column(mission_tree)), json_column(update_nodes)
+        )
     except engine.TreeError:
         tree = None  # its step fails it once bound
     waypoints = [
@@ -363,10 +356,10 @@ def _candidate_robot(
     head_priority: int | None,
     head_created: datetime | None,
 ) -> CandidateRobot:
-    actions, robot_maps = _json(actions), _json(robot_maps)
+    actions, robot_maps = json_column(actions), json_column(robot_maps)
     return CandidateRobot(
         name=name,
-        labels=frozenset(_json(labels) or ()),
+        labels=frozenset(json_column(labels) or ()),
         robot_type=robot_type,
         action_types=None if actions is None else frozenset(a.get("actionType") for a in actions),
         pose=Pose(x, y, map_id) if has_pose else None,

@@ -25,6 +25,7 @@ from dispatch.vocabulary import Lifecycle, MissionPurpose, MissionState, RobotSt
 from kit.db import json_column, jsonb
 from kit.wake import request_steps
 from missions.models import Mission
+from missions.rows import can_charge_sql
 from missions.services import PRIORITY_MAX, mission_cancel, mission_create
 from missions.tuning import TRIP_RETRY_MAX_SECONDS, TRIP_RETRY_SECONDS
 from robots.models import InstantAction, Robot
@@ -61,10 +62,7 @@ STATION_ROBOTS_SQL = f"""
         ),
         r.battery_level, r.battery_critical_level, r.battery_recommended_minimum,
         r.battery_recommended_maximum, r.state = '{RobotState.CHARGING}',
-        COALESCE(
-            r.factsheet #> '{{protocolFeatures,agvActions}}',
-            r.factsheet #> '{{protocolFeatures,mobileRobotActions}}'
-        ) @> '[{{"actionType": "{ActionType.START_CHARGING}"}}]'::jsonb,
+        {can_charge_sql("r")},
         trip.state, failed.count, failed.last_end,
         CASE WHEN NOT EXISTS (
             SELECT 1 FROM {_MISSIONS} m WHERE m.robot = r.name AND m.state IN {_UNFINISHED}
