@@ -43,3 +43,4 @@ class WriteAction(models.TextChoices):
     ZONE_SET_ENABLE = "zone_set_enable"
     ZONE_SET_DISABLE = "zone_set_disable"
     ZONE_SET_DELETE = "zone_set_delete"
+    ZONE_GRANT_REVOKE = "zone_grant_revoke"

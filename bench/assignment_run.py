@@ -67,7 +67,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=1000, help="robots and missions, N each")
     parser.add_argument("--repeats", type=int, default=3)
     options = parser.parse_args()
-    wake.install(lambda names: None, lambda: None)  # what the run asks for is not queued here
+    wake.install(lambda names: None, lambda: None, lambda: None)  # what the run asks for is not queued here
     rng = random.Random(SEED)
     walls, cpus = [], []
     for _ in range(options.repeats):

@@ -129,14 +129,16 @@ def cancel_overdue(mission: MissionRecord, now: datetime, stall_seconds: float) 
 
 
 def _excused(robot: RobotView, state: State) -> bool:
-    """Standing still is no stall: the robot is offline, paused, in teleop or a manual mode, driving, at a
-    running action, or reporting an error (which the step and the operator judge)."""
+    """Standing still is no stall: the robot is offline, paused, in teleop or a manual mode, driving, at its
+    decision point with only horizon ahead (waiting for a zone, `dispatch.zones`), at a running action, or
+    reporting an error (which the step and the operator judge)."""
     return (
         not robot.online
         or robot.state == RobotState.TELEOP
         or not vda_state.may_receive_orders(state)
         or bool(state.paused)
         or state.driving
+        or vda_state.waits_at_decision_point(state)
         or bool(state.errors)
         or any(a.action_status in STARTED for a in vda_state.all_action_states(state))
     )

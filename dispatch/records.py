@@ -13,6 +13,7 @@ from vda5050.codec import ACTIONS_KEY
 from vda5050.models import (
     InstantActionsContent,
     OrderContent,
+    ResponsesContent,
 )
 from vda5050.topics import Topic
 
@@ -28,6 +29,27 @@ class DispatchSettings:
 
 
 @dataclass(frozen=True)
+class ZoneReach:
+    """What the zone plan (`dispatch.zones.decide`, stored by `zones.plan`) allows a robot while some map
+    has an enabled RELEASE zone; a robot without one (None) is not held back by zones at all.
+
+    Its order's base may hold the nodes of order `order_id` up to sequenceId `release_through`: of any
+    other order (a new one, before the plan has seen it), no node beyond the robot's own position."""
+
+    order_id: str | None = None
+    release_through: int | None = None
+    waiting: tuple[str, ...] = ()  # the zone ids it waits for at the edge of its next leg
+    responses: tuple[tuple[str, str], ...] = ()  # answers to its 3.0 zoneRequests: (requestId, grantType)
+    responses_due: bool = False  # answers the robot was not sent yet
+
+    def through(self, order_id: str) -> int:
+        """How far the base of order `order_id` may reach (a sequenceId; 0: its first node alone)."""
+        if order_id != self.order_id or self.release_through is None:
+            return 0
+        return self.release_through
+
+
+@dataclass(frozen=True)
 class RobotView:
     name: str
     lifecycle: str
@@ -39,6 +61,7 @@ class RobotView:
     instant_actions_key: str = ACTIONS_KEY
     instant_actions_key_by_operator: bool = False  # then no compatibility rule changes it
     routes_ahead: bool = True  # False once compat.Rule.ORDER_UPDATE_NOT_EXECUTED applied to the robot
+    zone_reach: ZoneReach | None = None  # how far zones let its orders reach; None: no zones to mind
 
 
 @dataclass
@@ -96,12 +119,16 @@ class ActionRecord:
 class Outgoing:
     """A message to publish to the robot: an order or instant actions (header stamped when sent)."""
 
-    content: OrderContent | InstantActionsContent
+    content: OrderContent | InstantActionsContent | ResponsesContent
 
     @property
     def topic(self) -> Topic:
         """The topic it goes out on; each topic numbers its messages (headerId) on its own."""
-        return Topic.ORDER if isinstance(self.content, OrderContent) else Topic.INSTANT_ACTIONS
+        if isinstance(self.content, OrderContent):
+            return Topic.ORDER
+        if isinstance(self.content, ResponsesContent):
+            return Topic.RESPONSES
+        return Topic.INSTANT_ACTIONS
 
 
 @dataclass
@@ -124,3 +151,6 @@ class StepResult:
     # Why the robot gives back the queued mission assignment bound to it (offline, low battery, a FATAL
     # error, being deleted): it is unbound again, for another robot.
     release: str | None = None
+    # The zone plan should run (`zones.plan`): the robot's route or position on it changed, its mission
+    # ended, or its 3.0 zone requests are not the ones last answered.
+    zones_plan: bool = False

@@ -45,6 +45,8 @@ from vda5050.models import (
     ActionType,
     Error,
     OrderContent,
+    Response,
+    ResponsesContent,
     State,
 )
 
@@ -55,6 +57,7 @@ TIMED_OUT = "Mission timed out"
 DEADLINE_PASSED = "Mission deadline passed"
 ACTION_FAILURE = "Action failure"
 NO_POSITION = "Robot does not report its position"
+ZONE_WAITING = "Waiting for zone"  # a running route's waiting reason at a zone's edge: "Waiting for zone Z"
 
 
 def step(
@@ -79,6 +82,7 @@ def step(
     track_instant_actions(result, state, state_arrived_at)
     switch_to_legacy_key(result, robot, state)
     track_charging(result, state)
+    before = mission
     if mission is not None:
         mission = replace(mission)
         result.mission = mission
@@ -88,7 +92,92 @@ def step(
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
         track_charging(result, state)  # a mission that ended at startCharging leaves its robot charging
     send_instant_actions(result, robot, state, now, settings)
+    if robot.zone_reach is not None:
+        _zone_news(result, robot, state, before)
     return result
+
+
+# --- zones (`dispatch.zones`: the zone plan decides, the step carries it out) -----------------------------
+
+
+def _zone_news(
+    result: StepResult, robot: RobotView, state: State | None, before: MissionRecord | None
+) -> None:
+    """Answer the robot's 3.0 zone requests as the plan last decided, and ask for a plan run when what the
+    plan reads of the robot changed: a new order, progress on it, its mission's end, or requests the plan
+    has not answered (or answers to requests the robot no longer makes)."""
+    reach = robot.zone_reach
+    assert reach is not None
+    if reach.responses_due and reach.responses and robot.online:
+        answers = [Response(request_id=request, grant_type=grant) for request, grant in reach.responses]
+        result.messages.append(Outgoing(ResponsesContent(responses=answers)))
+    after = result.mission
+    if before is not None and after is not None:
+        progress = (after.progress or {}).get("lastNodeSequenceId")
+        moved = progress != (before.progress or {}).get("lastNodeSequenceId")
+        if moved or _order_id(after) != _order_id(before) or after.done:
+            result.zones_plan = True
+    if state is not None and state.zone_requests is not None:
+        asked = {request.request_id for request in state.zone_requests if request.request_status != "EXPIRED"}
+        if asked != {request for request, _ in reach.responses}:
+            result.zones_plan = True
+
+
+def _order_id(mission: MissionRecord) -> str | None:
+    return mission.order["orderId"] if mission.order is not None else None
+
+
+def _within_reach(robot: RobotView, order: OrderContent) -> OrderContent:
+    """A route's new order as far as zones let it reach: of an order the plan has not seen, nothing but
+    its start (the plan, asked for by the step, releases the rest leg by leg)."""
+    if robot.zone_reach is None:
+        return order
+    return orders.hold_back(order, robot.zone_reach.through(order.order_id))
+
+
+def _reach_further(
+    result: StepResult,
+    robot: RobotView,
+    state: State | None,
+    mission: MissionRecord,
+    leaf: engine.Node,
+    now: datetime,
+) -> None:
+    """Extend the running route's base through what the zone plan now allows (all of it once no zones
+    are to be minded), as an order update of the order the robot holds: the robot drives on from its
+    decision point, or sets off again from it if it waited there. The mission says which zones it waits
+    for meanwhile. Only once the robot holds the order as last sent: an update must start at the decision
+    point the robot has."""
+    if mission.order is None or leaf.kind != NodeKind.ROUTE:
+        return
+    if robot.zone_reach is None and all(node["released"] for node in mission.order["nodes"]):
+        return  # no zones, nothing held back: the hot path parses no order here
+    sent = sent_order(mission.order)
+    if sent.leaf != leaf.index or sent.ahead is not None:
+        return
+    order = sent.stored
+    last = order.nodes[-1].sequence_id
+    through = last if robot.zone_reach is None else min(robot.zone_reach.through(order.order_id), last)
+    waiting = robot.zone_reach.waiting if robot.zone_reach is not None and through < last else ()
+    if waiting:
+        mission.waiting_reason = f"{ZONE_WAITING} {', '.join(waiting)}"
+    elif mission.waiting_reason is not None and mission.waiting_reason.startswith(ZONE_WAITING):
+        mission.waiting_reason = None
+    if (
+        through <= orders.last_base_node(order).sequence_id
+        or not mission.order_accepted
+        or mission.needs_canceled
+        or state is None
+        or not robot.online
+        or not vda_state.may_receive_orders(state)
+        or pending_action(result, ActionType.CANCEL_ORDER) is not None
+    ):
+        return
+    update = orders.release_update(order, through)
+    mission.order = stored(orders.stitch(order, update))
+    mission.order_sent_at = now
+    mission.order_accepted = False
+    result.messages.append(Outgoing(update))
 
 
 # --- starting a queued mission -------------------------------------------------------------------------
@@ -362,7 +451,7 @@ def _follow_order(
                 # one an orderUpdateError about that id only, which `order_rejection` does not count).
                 result.messages.append(Outgoing(sent.message))
             mission.order_sent_at = now
-            result.messages.append(Outgoing(sent.latest))
+            result.messages.append(Outgoing(_resent(sent, state)))
         if not leaf_order_held:
             return
     failures = _fatal_errors_for(state, sent.stored)
@@ -382,6 +471,20 @@ def _follow_order(
         and faults.watch_progress(robot, state, mission, now, settings.order_stall.total_seconds())
     ):
         _end_stalled(result, state, mission, now, settings)
+
+
+def _resent(sent: SentOrder, state: State) -> OrderContent:
+    """The latest message again. A robot that holds an earlier update of the running leaf's own order (its
+    base extended, `_reach_further`) gets that update as it was sent, from the decision point it has."""
+    latest = sent.latest
+    if (
+        sent.ahead is None
+        and latest.order_update_id > 0
+        and state.order_id == latest.order_id
+        and state.order_update_id < latest.order_update_id
+    ):
+        return orders.unstitch(latest, vda_state.decision_point(state))[1]
+    return latest
 
 
 def _end_stalled(
@@ -456,7 +559,7 @@ def _take_over(
         waypoints=waypoints,
         start_deviation_xy=settings.start_deviation_xy,
     )
-    _send_order(result, mission, leaf, order, now)
+    _send_order(result, mission, leaf, _within_reach(robot, order), now)
 
 
 def _send_order(
@@ -645,6 +748,7 @@ def _tick(
             _tick(result, robot, state, state_arrived_at, mission, tree, now, settings)
         return
     if tick.leaf_to_start is None:
+        _reach_further(result, robot, state, mission, leaf, now)
         _extend(result, robot, state, mission, tree, leaf, now)
         return
     if leaf.kind == NodeKind.NOTIFY:
@@ -672,6 +776,8 @@ def _tick(
         return
     attempt = mission.attempts.get(leaf.name, 0)
     order = build_order(mission.name, leaf, attempt, pose, settings.start_deviation_xy)
+    if leaf.kind == NodeKind.ROUTE:
+        order = _within_reach(robot, order)
     _send_order(result, mission, leaf, order, now)
     _extend(result, robot, state, mission, tree, leaf, now)
 
@@ -741,6 +847,8 @@ def _extend(
       robot has enabled, never sent before: nothing between the two can fail or branch (only composites
       and constants lie between them, whose outcomes the stored states fix), and a leaf sent ahead once
       that did not run on it gets an order of its own, never a second update;
+    - no zones are to be minded (`RobotView.zone_reach`: the next leaf's route gets its own order, which
+      the zone plan then releases leg by leg),
     - nothing is sent ahead already (one leaf ahead at most), no route update waits for `leaf` (checked
       before), the mission is not being canceled and no cancelOrder is pending (3.0: no order update after
       cancelOrder), and the robot is online and may take orders.
@@ -750,6 +858,7 @@ def _extend(
     if (
         leaf.kind != NodeKind.ROUTE
         or not robot.routes_ahead
+        or robot.zone_reach is not None  # the zone plan has not seen the next leaf's route
         or mission.order is None
         or mission.needs_canceled
         or state is None

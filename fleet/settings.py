@@ -345,6 +345,9 @@ DISPATCH_STALL_CHECK_SECONDS = env_float("FLEET_STALL_CHECK_SECONDS", 5.0)
 # unbound mission, a robot freed, created, updated or back online), and the way robots freed otherwise
 # (charged, out of teleop) are found.
 ASSIGNMENT_CHECK_SECONDS = env_float("FLEET_ASSIGNMENT_CHECK_SECONDS", 3.0)
+# How often beat runs the zone plan while a map has an enabled zone set: the longest a zone stays held by a
+# robot that fell silent past its heartbeat timeout, or that left the zone without a step noticing.
+ZONES_CHECK_SECONDS = env_float("FLEET_ZONES_CHECK_SECONDS", 1.0)
 # A burst of unbound missions is bound together once it pauses this long (or once there are as many missions
 # as free robots), so that the robots are chosen for all of them at once (dispatch.assignment.burst_hold);
 # 0 binds each run's missions at once.
@@ -381,4 +384,5 @@ CELERY_BEAT_SCHEDULE = {
     "step-stalled": {"task": "fleet.step_stalled", "schedule": DISPATCH_STALL_CHECK_SECONDS},
     "trim-changes": {"task": "fleet.trim_changes", "schedule": CHANGE_TRIM_SECONDS},
     "assign-waiting": {"task": "fleet.assign_waiting", "schedule": ASSIGNMENT_CHECK_SECONDS},
+    "plan-zones": {"task": "fleet.plan_zones_while_enabled", "schedule": ZONES_CHECK_SECONDS},
 }

@@ -2,9 +2,9 @@
 missions.
 
 Services record a change and say which robots it concerns (`request_steps`), or that unbound missions may
-now find a robot (`request_assignment`); how those get queued (Celery,
-`workers.step_requests.queue_steps_soon` and `queue_assignment_soon`) is installed here by the workers app,
-so the services never import the workers.
+now find a robot (`request_assignment`), or that zones' grants may change (`request_zones_plan`); how those
+get queued (Celery, `workers.step_requests.queue_steps_soon`, `queue_assignment_soon` and
+`queue_zones_plan_soon`) is installed here by the workers app, so the services never import the workers.
 """
 
 from collections.abc import Callable, Iterable
@@ -13,16 +13,21 @@ from django.db import transaction
 
 StepRequester = Callable[[list[str]], None]
 AssignmentRequester = Callable[[bool], None]  # its argument: `defer_while_busy`
+ZonesRequester = Callable[[], None]
 
 _requester: StepRequester | None = None
 _assignment_requester: AssignmentRequester | None = None
+_zones_requester: ZonesRequester | None = None
 
 
-def install(requester: StepRequester, assignment_requester: AssignmentRequester) -> None:
-    """Set how steps and assignment runs are queued (`workers.apps.WorkersConfig.ready`)."""
-    global _requester, _assignment_requester
+def install(
+    requester: StepRequester, assignment_requester: AssignmentRequester, zones_requester: ZonesRequester
+) -> None:
+    """Set how steps, assignment runs and zone plan runs are queued (`workers.apps.WorkersConfig.ready`)."""
+    global _requester, _assignment_requester, _zones_requester
     _requester = requester
     _assignment_requester = assignment_requester
+    _zones_requester = zones_requester
 
 
 def request_steps(names: Iterable[str]) -> None:
@@ -46,3 +51,13 @@ def request_assignment(*, defer_while_busy: bool = False) -> None:
     if requester is None:
         raise RuntimeError("no assignment requester installed: is the workers app in INSTALLED_APPS?")
     transaction.on_commit(lambda: requester(defer_while_busy))
+
+
+def request_zones_plan() -> None:
+    """Run the zone plan (`zones.plan.zones_plan_run`: who holds which zone, how far each order reaches)
+    once the current transaction commits; requests made while one is queued are one run. Beat runs it too
+    while a map has an enabled zone set."""
+    requester = _zones_requester
+    if requester is None:
+        raise RuntimeError("no zones requester installed: is the workers app in INSTALLED_APPS?")
+    transaction.on_commit(requester)

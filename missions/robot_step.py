@@ -21,10 +21,18 @@ from django.db.models import JSONField
 from django.utils import timezone
 
 from dispatch.held import FINAL
-from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
+from dispatch.records import (
+    ActionRecord,
+    DispatchSettings,
+    MissionRecord,
+    Outgoing,
+    RobotView,
+    StepResult,
+    ZoneReach,
+)
 from dispatch.step import step
-from kit.db import jsonb, pipelined_transaction
-from kit.wake import request_assignment
+from kit.db import json_column, jsonb, pipelined_transaction
+from kit.wake import request_assignment, request_zones_plan
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.rows import (
@@ -49,6 +57,7 @@ from vda5050.codec import encode, header_for, parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
 from vda5050.topics import RobotAddress, Topic
+from zones.models import ZoneReach as ZoneReachRow
 
 logger = logging.getLogger(__name__)
 
@@ -69,8 +78,11 @@ ROBOT_FOR_STEP_SQL = f"""
             SELECT 1 FROM {InstantAction._meta.db_table} a
             WHERE a.robot_id = r.name
               AND (a.status IS NULL OR a.status NOT IN ({_FINAL_ACTION_STATUSES_SQL}))
-        )
-    FROM {Robot._meta.db_table} r WHERE r.name = %s FOR UPDATE OF r
+        ),
+        z.robot IS NOT NULL, z.order_id, z.release_through, z.waiting, z.responses, z.responses_version,
+        z.responses_sent, z.next_responses_header_id
+    FROM {Robot._meta.db_table} r LEFT JOIN {ZoneReachRow._meta.db_table} z ON z.robot = r.name
+    WHERE r.name = %s FOR UPDATE OF r
 """
 MISSION_RECORD_FIELDS = tuple(f.name for f in fields(MissionRecord))
 # Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
@@ -119,6 +131,7 @@ class StepOutcome:
     finished: list[MissionRecord] = field(default_factory=list)
     rejections: int = 0
     released: list[str] = field(default_factory=list)  # missions given back to assignment
+    zones_plan: bool = False  # the zone plan should run (`StepResult.zones_plan`)
     header_ids: list[int] = field(default_factory=list)  # the messages', drawn in the step's transaction
     # What to publish, in this order: `messages` encoded, after those of an earlier step that may not
     # have gone out (`_wire_messages`).
@@ -162,6 +175,9 @@ def _robot_step_transaction(name: str, now: datetime, outcome: StepOutcome) -> b
                 queue_cursor.execute(QUEUE_GREW_SQL, [name])
         if len(outcome.released) > released:
             request_assignment()  # committed: another robot may take them
+        if outcome.zones_plan:
+            outcome.zones_plan = False
+            request_zones_plan()  # committed: the plan reads what the step wrote
         if end is StepEnd.ROBOT_DELETED:  # its live state goes once that is committed
             outcome.header_ids.clear()
             outcome.wire.clear()
@@ -186,11 +202,20 @@ class _RobotWire:
     next_header_ids: dict[Topic, int]
     outbox: list[dict[str, Any]]
     published: dict[str, int]
+    responses_version: int = 0  # the zone plan's answers the robot's responses go out with
 
 
 OUTBOX_SQL = f"""
     UPDATE {Robot._meta.db_table}
     SET next_order_header_id = %s, next_instant_actions_header_id = %s, outbox = %s WHERE name = %s
+"""
+
+
+# The responses topic's headerIds and the answers sent live on the robot's zone reach (`zones.plan`): only a
+# robot the zone plan answers gets any.
+RESPONSES_SENT_SQL = f"""
+    UPDATE {ZoneReachRow._meta.db_table} SET next_responses_header_id = %s, responses_sent = %s
+    WHERE robot = %s
 """
 
 
@@ -218,6 +243,10 @@ def _wire_messages(
         payload = encode(message.content, header, instant_actions_key=outcome.instant_actions_key)
         new.append({"topic": message.topic.value, "header_id": header_id, "payload": payload.decode()})
         outcome.header_ids.append(header_id)
+    if any(message.topic == Topic.RESPONSES for message in outcome.messages[first:]):
+        cursor.execute(
+            RESPONSES_SENT_SQL, [wire.next_header_ids[Topic.RESPONSES], wire.responses_version, name]
+        )
     if new:
         cursor.execute(
             OUTBOX_SQL,
@@ -294,15 +323,37 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         *address,
         charge_threshold,
         has_actions,
+        has_reach,
+        reach_order_id,
+        release_through,
+        waiting,
+        responses,
+        responses_version,
+        responses_sent,
+        next_responses_header_id,
     ) = row
     outcome.address = RobotAddress(*address)
     outcome.instant_actions_key = actions_key
     state, state_arrived_at, published = _live_state(name)
     wire = _RobotWire(
-        {Topic.ORDER: next_order_header_id, Topic.INSTANT_ACTIONS: next_instant_actions_header_id},
+        {
+            Topic.ORDER: next_order_header_id,
+            Topic.INSTANT_ACTIONS: next_instant_actions_header_id,
+            Topic.RESPONSES: next_responses_header_id or 0,
+        },
         orjson.loads(outbox) if outbox is not None else [],
         published,
+        responses_version or 0,
     )
+    zone_reach = None
+    if has_reach:
+        zone_reach = ZoneReach(
+            order_id=reach_order_id,
+            release_through=release_through,
+            waiting=tuple(json_column(waiting) or ()),
+            responses=tuple((request, grant) for request, grant in json_column(responses) or ()),
+            responses_due=responses_version > responses_sent,
+        )
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
     view = RobotView(
         name=name,
@@ -315,6 +366,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         instant_actions_key=actions_key,
         instant_actions_key_by_operator=actions_key_by_operator,
         routes_ahead=routes_ahead,
+        zone_reach=zone_reach,
     )
     ended_a_mission = False
     while True:
@@ -336,6 +388,9 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             view = replace(view, instant_actions_key=result.instant_actions_key)
         outcome.messages.extend(result.messages)
         outcome.rejections += int(result.rejected)
+        outcome.zones_plan = outcome.zones_plan or result.zones_plan
+        if zone_reach is not None and zone_reach.responses_due:
+            view = replace(view, zone_reach=replace(zone_reach, responses_due=False))  # sent once a step
         view = replace(view, state=result.robot_state)
         if mission is not None and result.mission is not None:
             stored = mission

@@ -216,6 +216,12 @@ def latest_state(name: str) -> LatestState:
     return _latest_state(name, [])
 
 
+def states(names: list[str]) -> dict[str, bytes | None]:
+    """The latest state of each robot (None if none is stored). One `round_trip`."""
+    replies = round_trip([("HGET", robot_key(name), "state") for name in names]) if names else []
+    return dict(zip(names, replies, strict=True))
+
+
 def state_for_step(name: str) -> LatestState:
     """`latest_state`, as a step reads it: in the same round trip the robot's step stops counting as queued
     (`step_marker_key`), so a change stored from now on asks for another step, while one stored before is
@@ -240,7 +246,7 @@ def step_marker_key(name: str) -> str:
 
 
 # The topics on which the server sends robots messages (vda5050.topics.Topic values).
-PUBLISHED_TOPICS = ("order", "instantActions")
+PUBLISHED_TOPICS = ("order", "instantActions", "responses")
 
 
 def _published_field(topic: str) -> str:

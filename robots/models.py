@@ -117,6 +117,13 @@ class Robot(models.Model):
         help_text="Why the robot, low or asked to charge, has no charging trip (no free charger, its "
         "factsheet lists no startCharging, ...); null otherwise.",
     )
+    # --- zone access (the zone plan's, `zones.plan`) ---
+    zone_access = models.JSONField(
+        default=dict,
+        blank=True,
+        help_text="The RELEASE zones the robot holds and those it waits for: {held: [{map_id, zone_id}, "
+        "...], waiting: [...]}; empty while no map has an enabled RELEASE zone.",
+    )
 
     created_at = models.DateTimeField(auto_now_add=True)
     updated_at = models.DateTimeField(auto_now=True)

@@ -26,6 +26,8 @@ from vda5050.models import (
     Message,
     Order,
     OrderContent,
+    Responses,
+    ResponsesContent,
     State,
     StateContent,
     Visualization,
@@ -78,6 +80,7 @@ CONTENT_MESSAGE_TYPES: tuple[tuple[type[Content], type[Message], Topic], ...] = 
     (ConnectionContent, Connection, Topic.CONNECTION),
     (VisualizationContent, Visualization, Topic.VISUALIZATION),
     (FactsheetContent, Factsheet, Topic.FACTSHEET),
+    (ResponsesContent, Responses, Topic.RESPONSES),
 )
 
 ModelT = TypeVar("ModelT", bound=BaseModel)

@@ -511,6 +511,26 @@ class State(MessageHeader, StateContent):
     pass
 
 
+# --- responses (3.0) --------------------------------------------------------------------------------
+
+
+class Response(VdaModel):
+    """Fleet control's answer to one zone or edge request (``GRANTED``, ``QUEUED``, ``REVOKED``,
+    ``REJECTED``)."""
+
+    request_id: str
+    grant_type: str
+    lease_expiry: str | None = None
+
+
+class ResponsesContent(VdaModel):
+    responses: list[Response]
+
+
+class Responses(MessageHeader, ResponsesContent):
+    pass
+
+
 # --- connection ------------------------------------------------------------------------------------
 
 
@@ -752,7 +772,7 @@ class Factsheet(FactsheetContent):
     serial_number: str
 
 
-Message = Order | InstantActions | State | Connection | Visualization | Factsheet
+Message = Order | InstantActions | State | Connection | Visualization | Factsheet | Responses
 Content = (
     OrderContent
     | InstantActionsContent
@@ -760,4 +780,5 @@ Content = (
     | ConnectionContent
     | VisualizationContent
     | FactsheetContent
+    | ResponsesContent
 )

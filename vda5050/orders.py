@@ -266,6 +266,50 @@ def unstitch(order: OrderContent, sequence_id: int) -> tuple[OrderContent, Order
     return before, update
 
 
+def hold_back(order: OrderContent, through: int) -> OrderContent:
+    """``order`` with its base ending at the node of sequenceId ``through`` (its first node at least):
+    what lies beyond is announced as horizon, not released."""
+    return order.model_copy(
+        update={
+            "nodes": [
+                node.model_copy(update={"released": node.released and node.sequence_id <= through})
+                for node in order.nodes
+            ],
+            "edges": [
+                edge.model_copy(update={"released": edge.released and edge.sequence_id < through})
+                for edge in order.edges
+            ],
+        },
+        deep=True,
+    )
+
+
+def release_update(order: OrderContent, through: int) -> OrderContent:
+    """The order update that extends ``order``'s base (as the robot holds it) through its horizon node of
+    sequenceId ``through``: the decision point, then the horizon's nodes and edges as they were announced,
+    released up to ``through``, the rest still horizon. ``stitch`` makes it the order the robot holds."""
+    decision_point = last_base_node(order)
+    beyond = decision_point.sequence_id
+    return OrderContent(
+        order_id=order.order_id,
+        order_update_id=order.order_update_id + 1,
+        zone_set_id=order.zone_set_id,
+        nodes=[
+            decision_point.model_copy(deep=True),
+            *(
+                node.model_copy(update={"released": node.sequence_id <= through}, deep=True)
+                for node in order.nodes
+                if node.sequence_id > beyond
+            ),
+        ],
+        edges=[
+            edge.model_copy(update={"released": edge.sequence_id < through}, deep=True)
+            for edge in order.edges
+            if edge.sequence_id > beyond
+        ],
+    )
+
+
 def last_base_node(order: OrderContent) -> Node:
     """The decision point: the robot stops there unless the base is extended."""
     released = [node for node in order.nodes if node.released]

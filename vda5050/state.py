@@ -84,6 +84,19 @@ def last_node_reached(state: State, order_id: str, sequence_id: int) -> bool:
     )
 
 
+def decision_point(state: State) -> int:
+    """The sequenceId of the last released node the robot holds still ahead, else of the node it last
+    reached: where an order update of its order must start."""
+    released = [node.sequence_id for node in state.node_states if node.released]
+    return max(released) if released else state.last_node_sequence_id
+
+
+def waits_at_decision_point(state: State) -> bool:
+    """The robot has driven its order's base and holds only horizon ahead: it waits for the base to be
+    extended, standing still by design."""
+    return bool(state.node_states) and not any(node.released for node in state.node_states)
+
+
 def action_status(state: State, action_id: str) -> ActionStatus | None:
     """Status of one action by id, wherever the robot reports it; None while it does not."""
     statuses = [a.action_status for a in all_action_states(state) if a.action_id == action_id]

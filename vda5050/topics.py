@@ -25,6 +25,7 @@ class Topic(StrEnum):
     VISUALIZATION = "visualization"
     CONNECTION = "connection"
     FACTSHEET = "factsheet"
+    RESPONSES = "responses"  # 3.0: fleet control's answers to zone (and edge) requests
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,7 @@ RENAMED_IN_3: dict[Topic, dict[str, str]] = {
     },
     Topic.VISUALIZATION: _POSITION_3,
     Topic.CONNECTION: {},
+    Topic.RESPONSES: {},
     Topic.FACTSHEET: {
         "typeSpecification.agvKinematic": "mobileRobotKinematics",
         "typeSpecification.agvClass": "mobileRobotClass",
@@ -114,6 +115,7 @@ RENAMED_VALUES_IN_3: dict[Topic, dict[str, dict[str, str]]] = {
     Topic.INSTANT_ACTIONS: {},
     Topic.STATE: {"operatingMode": {"TEACHIN": "TEACH_IN"}},
     Topic.VISUALIZATION: {},
+    Topic.RESPONSES: {},
     Topic.CONNECTION: {"connectionState": {"CONNECTIONBROKEN": "CONNECTION_BROKEN"}},
     Topic.FACTSHEET: {
         "typeSpecification.agvKinematic": {

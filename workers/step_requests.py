@@ -42,6 +42,11 @@ ASSIGNMENT_RAN_KEY = f"{livestate.PREFIX}:assignment-ran"
 # it): a new unbound mission then asks for its run only once that news is old
 # (`request_assignment(defer_while_busy=True)`), so that a busy fleet's runs are not one per new mission.
 ASSIGNMENT_FLEET_BUSY_KEY = f"{livestate.PREFIX}:assignment-fleet-busy"
+ZONES_TASK = "fleet.plan_zones"  # workers.tasks.plan_zones
+# Exists while a zone plan run is queued and has not started; and for ZONES_RUN_INTERVAL_SECONDS after a
+# run started (as the assignment's markers).
+ZONES_MARKER_KEY = f"{livestate.PREFIX}:zones-queued"
+ZONES_RAN_KEY = f"{livestate.PREFIX}:zones-ran"
 
 
 def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
@@ -112,6 +117,38 @@ def queue_assignment(
         raise
 
 
+def queue_zones_plan() -> None:
+    """Queue a zone plan run unless one is queued already (`ZONES_MARKER_KEY`), to start no sooner than
+    `ZONES_RUN_INTERVAL_SECONDS` after the last run started. One round trip to Redis."""
+    marked, since_last = replies = livestate.round_trip(
+        [("SET", ZONES_MARKER_KEY, 1, "NX", "EX", tuning.ZONES_MARKER_SECONDS), ("PTTL", ZONES_RAN_KEY)]
+    )
+    for reply in replies:
+        if isinstance(reply, Exception):
+            raise reply
+    if marked is None:
+        return
+    countdown = max(since_last / 1000, 0.0)  # PTTL: -2 if none
+    try:
+        app.send_task(
+            ZONES_TASK,
+            (),
+            queue=settings.STEP_QUEUE,
+            producer=_thread_producer(),
+            countdown=countdown or None,
+        )
+    except Exception:
+        livestate.round_trip([("DEL", ZONES_MARKER_KEY)])  # a marker without its task blocks every run
+        raise
+
+
+def zones_plan_started() -> None:
+    """Let the next request queue a run (the run starting reads the robots afterwards), not to start
+    before `ZONES_RUN_INTERVAL_SECONDS` from now."""
+    interval_ms = int(tuning.ZONES_RUN_INTERVAL_SECONDS * 1000)
+    livestate.round_trip([("DEL", ZONES_MARKER_KEY), ("SET", ZONES_RAN_KEY, 1, "PX", interval_ms)])
+
+
 def assignment_run_finished(*, idle_robots: int | None) -> None:
     """Remember whether the run left a free robot idle (`ASSIGNMENT_FLEET_BUSY_KEY`); None: not known."""
     if idle_robots == 0:
@@ -175,6 +212,11 @@ def queue_assignment_soon(defer_while_busy: bool = False) -> None:
     _sender.add((), at=time.time(), assignment=wanted)
 
 
+def queue_zones_plan_soon() -> None:
+    """`queue_zones_plan` from this process's sender thread (as `queue_steps_soon`)."""
+    _sender.add((), at=time.time(), zones=True)
+
+
 class Assignment(IntEnum):
     """What a sender is asked of assignment; a stronger request covers a weaker one."""
 
@@ -190,16 +232,25 @@ class _StepSender:
     def __init__(self) -> None:
         self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
         self._assignment = Assignment.NONE
+        self._zones = False
         self._at: float | None = None  # when the oldest of them was requested
         self._sending = False
         self._changed = threading.Condition()
         self._thread: threading.Thread | None = None
 
-    def add(self, names: Iterable[str], *, at: float, assignment: Assignment = Assignment.NONE) -> None:
+    def add(
+        self,
+        names: Iterable[str],
+        *,
+        at: float,
+        assignment: Assignment = Assignment.NONE,
+        zones: bool = False,
+    ) -> None:
         with self._changed:
             self._names.update(dict.fromkeys(names))
             self._assignment = max(self._assignment, assignment)
-            if not self._names and not self._assignment:
+            self._zones = self._zones or zones
+            if not self._names and not self._assignment and not self._zones:
                 return
             self._at = at if self._at is None else min(self._at, at)
             if self._thread is None or not self._thread.is_alive():
@@ -211,27 +262,32 @@ class _StepSender:
         """Wait until every request made so far is queued (at exit); False if `timeout` s passed first."""
         with self._changed:
             return self._changed.wait_for(
-                lambda: not self._names and not self._assignment and not self._sending, timeout
+                lambda: not self._names and not self._assignment and not self._zones and not self._sending,
+                timeout,
             )
 
     def _send_forever(self) -> None:
         failing = False
         while True:
             with self._changed:
-                self._changed.wait_for(lambda: self._names or self._assignment)
+                self._changed.wait_for(lambda: self._names or self._assignment or self._zones)
                 names, at, assignment = list(self._names), self._at or time.time(), self._assignment
+                zones = self._zones
                 self._names, self._at, self._assignment, self._sending = {}, None, Assignment.NONE, True
+                self._zones = False
             try:
                 queue_steps(names, at=at)
                 if assignment:
                     queue_assignment(defer_while_busy=assignment is Assignment.DEFERRED_WHILE_BUSY)
+                if zones:
+                    queue_zones_plan()
             except (redis.RedisError, kombu.exceptions.OperationalError, OSError) as error:
                 if not failing:
                     logger.warning(
                         "steps not queued (%s); trying again every %s s", error, tuning.UNQUEUED_RETRY_SECONDS
                     )
                 failing = True
-                self.add(names, at=at, assignment=assignment)
+                self.add(names, at=at, assignment=assignment, zones=zones)
                 time.sleep(tuning.UNQUEUED_RETRY_SECONDS)
             else:
                 if failing:

@@ -16,18 +16,23 @@ from kit.db import drop_broken_connections
 from missions import selectors as mission_selectors
 from missions.services import mission_notify_finished, missions_assign
 from missions.trips import stations_plan_run
+from missions.zone_plan import zones_plan_run
 from robots.status import robot_check_heartbeats
 from stations.selectors import stations_exist
 from workers.long_lived import keep_trying, retry_delay, settle_long_lived_process
 from workers.step_requests import (
     ASSIGN_TASK,
     STEP_TASK,
+    ZONES_TASK,
     assignment_run_finished,
     assignment_run_started,
     queue_assignment,
     queue_steps,
+    queue_zones_plan,
+    zones_plan_started,
 )
 from workers.step_runs import NOTIFY_TASK, step_and_publish
+from zones.selectors import zone_sets_enabled
 
 logger = logging.getLogger(__name__)
 
@@ -87,6 +92,22 @@ def assign_waiting() -> None:
         queue_assignment(with_reasons=True)
     elif stations_exist():
         queue_assignment()
+
+
+@shared_task(name=ZONES_TASK, ignore_result=True)
+def plan_zones() -> None:
+    """Who holds which RELEASE zone, how far each order reaches (`missions.zone_plan`). The marker goes
+    first: a request made during the run queues one more, which sees what this one may have read too early."""
+    zones_plan_started()
+    zones_plan_run()
+
+
+@shared_task(name="fleet.plan_zones_while_enabled", ignore_result=True)
+def plan_zones_while_enabled() -> None:
+    """Beat's clock for the zone plan while a map has an enabled zone set: robots fall silent, leave zones
+    and report positions without a step asking for a run."""
+    if zone_sets_enabled():
+        queue_zones_plan()
 
 
 class NotifyFailedRetryably(Exception):

@@ -44,3 +44,51 @@ class ZoneSet(models.Model):
 
     def __str__(self) -> str:
         return self.name
+
+
+class ZoneGrant(models.Model):
+    """A robot holds a RELEASE zone of its map's enabled zone set (`dispatch.zones.decide`): written by
+    the zone plan (`zones.plan.zones_plan_run`) alone. A robot is a name, as a mission names its robot: a
+    deleted robot's grants go with the next plan run."""
+
+    map_id = models.TextField()
+    zone_id = models.TextField()
+    robot = models.CharField(max_length=100)
+    granted_at = models.DateTimeField()
+    # An operator took it back (`zones.services.zone_grant_revoke`); the next plan run applies that.
+    revoked_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["granted_at", "id"]
+        indexes = [models.Index(fields=["robot"], name="zone_grant_robot_idx")]
+        constraints = [
+            models.UniqueConstraint(fields=["map_id", "zone_id", "robot"], name="zone_grant_unique"),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.robot} holds {self.map_id}/{self.zone_id}"
+
+
+class ZoneReach(models.Model):
+    """How far a robot's order may reach while RELEASE zones are enabled, and what its 3.0 zone requests
+    are answered: the zone plan writes it, the robot's step reads it (one LEFT JOIN on the step's robot
+    read) and carries it out. A robot has one while some map has an enabled RELEASE zone: its step then
+    releases an order's base only through `release_through` of `order_id` (nothing new of another order).
+    """
+
+    robot = models.CharField(max_length=100, primary_key=True)
+    # The base of order `order_id` may hold its nodes up to this sequenceId; NULL: no more than it holds.
+    order_id = models.TextField(null=True, blank=True)
+    release_through = models.IntegerField(null=True, blank=True)
+    waiting = models.JSONField(default=list, blank=True, help_text="Zone ids the robot waits for.")
+    # The answers to its 3.0 zoneRequests, [requestId, grantType] pairs; `responses_version` counts their
+    # changes, `responses_sent` is the version its step last sent on the responses topic, with headerId
+    # `next_responses_header_id` - 1 (the topic numbers its messages on its own).
+    responses = models.JSONField(default=list, blank=True)
+    responses_version = models.IntegerField(default=0)
+    responses_sent = models.IntegerField(default=0)
+    next_responses_header_id = models.BigIntegerField(default=0)
+    updated_at = models.DateTimeField(auto_now=True)
+
+    def __str__(self) -> str:
+        return self.robot

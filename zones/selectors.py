@@ -22,3 +22,8 @@ def zone_set_list(*, filters: Mapping[str, Any] | None = None) -> QuerySet[ZoneS
     if not filterset.is_valid():
         raise QueryValidationError.from_form_errors(filterset.errors)
     return filterset.qs
+
+
+def zone_sets_enabled() -> bool:
+    """Some map has an enabled zone set (beat then runs the zone plan, `missions.zone_plan`)."""
+    return ZoneSet.objects.filter(enabled=True).exists()

@@ -5,13 +5,15 @@ from collections.abc import Mapping
 from typing import Any
 
 from django.db import IntegrityError, transaction
+from django.utils import timezone
 
 from access.choices import WriteAction
 from access.services import write_record
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_for_create
 from kit.api.rows import lock_row
-from zones.models import ZoneSet
+from kit.wake import request_zones_plan
+from zones.models import ZoneGrant, ZoneSet
 
 
 def zone_set_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> ZoneSet:
@@ -50,6 +52,7 @@ def zone_set_enable(*, actor: str, zone_set: ZoneSet) -> ZoneSet:
             locked.enabled = True
             locked.save(update_fields=["enabled", "updated_at"])
         write_record(actor=actor, action=WriteAction.ZONE_SET_ENABLE, object_name=locked.name)
+        request_zones_plan()  # its RELEASE zones are minded from now on
     return locked
 
 
@@ -61,6 +64,7 @@ def zone_set_disable(*, actor: str, zone_set: ZoneSet) -> ZoneSet:
             locked.enabled = False
             locked.save(update_fields=["enabled", "updated_at"])
         write_record(actor=actor, action=WriteAction.ZONE_SET_DISABLE, object_name=locked.name)
+        request_zones_plan()  # its grants go, and what orders held back for them is released
     return locked
 
 
@@ -76,3 +80,22 @@ def zone_set_delete(*, actor: str, zone_set: ZoneSet) -> None:
             )
         write_record(actor=actor, action=WriteAction.ZONE_SET_DELETE, object_name=locked.name)
         locked.delete()
+
+
+def zone_grant_revoke(*, actor: str, zone_set: ZoneSet, robot: str, zone_id: str) -> None:
+    """Take back the grant of zone `zone_id` of the enabled `zone_set` that `robot` holds; the next zone plan
+    run (asked for here) applies it (`dispatch.zones.decide`): a robot not yet in the zone loses it and waits,
+    one already in it (or whose released base crosses it) keeps it until it has left, 3.0 robots are answered
+    REVOKED. A zone or robot without such a grant is refused, as is a disabled set (it grants nothing)."""
+    if not zone_set.enabled:
+        raise UsageError(f"Zone set {zone_set.name} is not enabled: it grants nothing to revoke.")
+    if not any(zone["zone_id"] == zone_id for zone in zone_set.zones):
+        raise UsageError(f"Zone set {zone_set.name} has no zone {zone_id}.")
+    with transaction.atomic():
+        revoked = ZoneGrant.objects.filter(
+            map_id=zone_set.map_id, zone_id=zone_id, robot=robot, revoked_at__isnull=True
+        ).update(revoked_at=timezone.now())
+        if not revoked:
+            raise UsageError(f"Robot {robot} holds no grant of zone {zone_id} of zone set {zone_set.name}.")
+        write_record(actor=actor, action=WriteAction.ZONE_GRANT_REVOKE, object_name=zone_set.name)
+        request_zones_plan()
