@@ -1,0 +1,217 @@
+"""`missions.zone_plan.zones_plan_run` and the steps that carry it out, against the real PostgreSQL and Redis:
+grants written and let go, the order's base held back at a zone's edge and extended by an order update once
+granted, the mission's waiting reason, the robot's status, an operator's revoke.
+
+The zone is the factory's 2 m square at the origin of map `map`. Robot A, at (-1, 1), drives through it
+eastward to (3, 1); robot B, at (1, 3), southward to (1, -1): their routes cross in the square.
+"""
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from django.utils import timezone
+
+from kit.api.errors import UsageError
+from missions.models import Mission
+from missions.services import mission_create
+from missions.zone_plan import zones_plan_run
+from robots.models import Robot
+from robots.services import robot_rows_delete
+from tests.dispatch.builders import on_order
+from tests.factories import TEST_ACTOR, ZoneSetFactory
+from tests.missions.test_robot_step import orders, put_state, step
+from vda5050.models import OrderContent
+from zones.models import ZoneGrant, ZoneReach, ZoneSet
+from zones.services import zone_grant_revoke, zone_set_disable, zone_set_enable
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+MakeRobot = Callable[..., Robot]
+A_START, A_ROUTE = (-1.0, 1.0), [(1.0, 1.0), (3.0, 1.0)]
+B_START, B_ROUTE = (1.0, 3.0), [(1.0, 1.0), (1.0, -1.0)]
+
+
+@pytest.fixture
+def zone_set() -> ZoneSet:
+    return zone_set_enable(actor=TEST_ACTOR, zone_set=ZoneSetFactory())
+
+
+def at(robot: Robot, x: float, y: float, *, header_id: int = 1, **state: Any) -> None:
+    """The robot reports (x, y) on map `map`, in its live state and in its row (the bridge's flush)."""
+    Robot.objects.filter(name=robot.name).update(
+        online=True, pose_x=x, pose_y=y, pose_map_id="map", last_state_at=timezone.now()
+    )
+    put_state(robot, header_id=header_id, pose=(x, y, 0.0, "map"), **state)
+
+
+def on_route(make_robot: MakeRobot, start: tuple[float, float], route: list[tuple[float, float]]) -> Robot:
+    """An online robot at `start` with a mission through `route`, its first order sent and taken."""
+    robot = make_robot(prefix="zone")
+    at(robot, *start)
+    waypoints = [{"x": x, "y": y, "theta": 0.0, "map_id": "map"} for x, y in route]
+    mission_create(
+        actor=TEST_ACTOR,
+        name=f"m-{robot.name}",
+        prefix=None,
+        spec={"robot": robot.name, "mission_tree": [{"name": "r", "route": {"waypoints": waypoints}}]},
+    )
+    return robot
+
+
+def sent_order(robot: Robot) -> OrderContent:
+    return OrderContent.model_validate(Mission.objects.get(robot=robot.name).order)
+
+
+def takes(robot: Robot, header_id: int, reached: int = 0) -> None:
+    """The robot reports it holds its mission's order (as last sent), at the node `reached`."""
+    order = sent_order(robot)
+    x, y = Robot.objects.filter(name=robot.name).values_list("pose_x", "pose_y").get()
+    put_state(robot, header_id=header_id, state=on_order(order, reached, pose=(x, y, 0.0, "map")))
+    step(robot)
+
+
+def released(order: OrderContent) -> list[int]:
+    return [node.sequence_id for node in order.nodes if node.released]
+
+
+def holders() -> set[tuple[str, str]]:
+    return set(ZoneGrant.objects.values_list("zone_id", "robot"))
+
+
+def test_a_new_order_releases_nothing_but_its_start_until_the_plan_has_seen_it(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    zones_plan_run()  # every robot gets its reach: the one below is held by zones from its first order
+    robot = on_route(make_robot, A_START, A_ROUTE)
+    robot = Robot.objects.get(name=robot.name)
+    zones_plan_run()
+
+    [order] = orders(step(robot))
+
+    assert released(order) == [0]
+    assert [node.sequence_id for node in order.nodes] == [0, 2, 4]
+
+
+def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at_its_edge(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    zones_plan_run()
+    a = on_route(make_robot, A_START, A_ROUTE)
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    for robot in (a, b):
+        step(robot)
+        takes(robot, header_id=2)
+
+    decision = zones_plan_run()
+
+    assert decision is not None
+    assert holders() == {("square", a.name)}
+    assert ZoneReach.objects.get(robot=b.name).waiting == ["square"]
+    [update] = orders(step(a))
+    assert (update.order_update_id, released(update)) == (1, [0, 2, 4])
+    assert sent_order(a).order_update_id == 1 and released(sent_order(a)) == [0, 2, 4]
+    assert orders(step(b)) == []
+    assert Mission.objects.get(robot=b.name).waiting_reason == "Waiting for zone square"
+    assert Robot.objects.get(name=a.name).zone_access == {
+        "held": [{"map_id": "map", "zone_id": "square"}],
+        "waiting": [],
+    }
+    assert Robot.objects.get(name=b.name).zone_access["waiting"] == [{"map_id": "map", "zone_id": "square"}]
+
+
+def test_the_zone_passes_to_the_waiting_robot_once_the_holder_has_left_it(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    zones_plan_run()
+    a = on_route(make_robot, A_START, A_ROUTE)
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    for robot in (a, b):
+        step(robot)
+        takes(robot, header_id=2)
+    zones_plan_run()
+    step(a)
+    takes(a, header_id=3)  # holds the update
+    at(a, 3.0, 1.0, header_id=4, **{})  # through the square, at its last node
+    put_state(a, header_id=5, state=on_order(sent_order(a), 4, pose=(3.0, 1.0, 0.0, "map")))
+    step(a)
+
+    zones_plan_run()
+
+    assert holders() == {("square", b.name)}
+    [update] = orders(step(b))
+    assert released(update) == [0, 2, 4]
+    assert Mission.objects.get(robot=b.name).waiting_reason is None
+
+
+@pytest.mark.parametrize("gone", ["offline", "deleted"])
+def test_a_robot_offline_or_deleted_holds_nothing(zone_set: ZoneSet, make_robot: MakeRobot, gone: str) -> None:
+    zones_plan_run()
+    a = on_route(make_robot, A_START, A_ROUTE)
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    for robot in (a, b):
+        step(robot)
+        takes(robot, header_id=2)
+    zones_plan_run()
+    assert holders() == {("square", a.name)}
+    if gone == "offline":
+        Robot.objects.filter(name=a.name).update(online=False)
+    else:
+        robot_rows_delete(a.name)
+
+    zones_plan_run()
+
+    assert holders() == {("square", b.name)}
+    assert ZoneReach.objects.filter(robot=a.name).exists() == (gone == "offline")
+
+
+def test_a_revoked_grant_of_a_robot_not_yet_in_the_zone_goes_to_the_next(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    zones_plan_run()
+    a = on_route(make_robot, A_START, A_ROUTE)
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    for robot in (a, b):
+        step(robot)
+        takes(robot, header_id=2)
+    zones_plan_run()
+
+    zone_grant_revoke(actor=TEST_ACTOR, zone_set=zone_set, robot=a.name, zone_id="square")
+    zones_plan_run()
+
+    assert holders() == {("square", b.name)}
+    assert ZoneReach.objects.get(robot=a.name).waiting == ["square"]
+    assert orders(step(a)) == []
+
+
+def test_revoking_what_no_robot_holds_is_refused(zone_set: ZoneSet, make_robot: MakeRobot) -> None:
+    robot = make_robot(prefix="zone")
+    with pytest.raises(UsageError, match="holds no grant"):
+        zone_grant_revoke(actor=TEST_ACTOR, zone_set=zone_set, robot=robot.name, zone_id="square")
+    with pytest.raises(UsageError, match="has no zone"):
+        zone_grant_revoke(actor=TEST_ACTOR, zone_set=zone_set, robot=robot.name, zone_id="nowhere")
+
+
+def test_disabling_the_zone_set_lets_everything_go_and_the_held_back_base_is_released(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    zones_plan_run()
+    a = on_route(make_robot, A_START, A_ROUTE)
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    for robot in (a, b):
+        step(robot)
+        takes(robot, header_id=2)
+    zones_plan_run()
+
+    zone_set_disable(actor=TEST_ACTOR, zone_set=zone_set)
+    assert zones_plan_run() is None
+
+    assert holders() == set() and not ZoneReach.objects.exists()
+    [update] = orders(step(b))
+    assert released(update) == [0, 2, 4]
+    assert Robot.objects.get(name=a.name).zone_access == {}
