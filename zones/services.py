@@ -86,9 +86,7 @@ def zone_grant_revoke(*, actor: str, zone_set: ZoneSet, robot: str, zone_id: str
     """Take back the grant of zone `zone_id` of the enabled `zone_set` that `robot` holds; the next zone plan
     run (asked for here) applies it (`dispatch.zones.decide`): a robot not yet in the zone loses it and waits,
     one already in it (or whose released base crosses it) keeps it until it has left, 3.0 robots are answered
-    REVOKED. A zone or robot without such a grant is refused, as is a disabled set (it grants nothing)."""
-    if not zone_set.enabled:
-        raise UsageError(f"Zone set {zone_set.name} is not enabled: it grants nothing to revoke.")
+    REVOKED. A zone the set lacks, or one the robot holds no grant of, is refused."""
     if not any(zone["zone_id"] == zone_id for zone in zone_set.zones):
         raise UsageError(f"Zone set {zone_set.name} has no zone {zone_id}.")
     with transaction.atomic():

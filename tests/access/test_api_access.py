@@ -18,6 +18,7 @@ from stations.models import Station
 from tests.access.endpoints import PUBLIC_PATHS, Endpoint, endpoints
 from tests.conftest import authenticated_client
 from tests.factories import MissionFactory, RobotFactory, StationFactory, ZoneSetFactory
+from zones.models import ZoneGrant
 
 pytestmark = pytest.mark.django_db
 
@@ -37,6 +38,7 @@ WRITE_BODIES = {
     "POST /station": {"name": "acc2", "kind": "PARKING", "pose": {}},
     "PUT /station/acc1": {"kind": "PARKING", "pose": {}},
     "POST /zone_set": {"name": "acc2", "map_id": "map", "zones": []},
+    "POST /zone_set/acc1/revoke": {"robot": NAME, "zone_id": "square"},
 }
 WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 
@@ -53,6 +55,7 @@ def objects() -> None:
     MissionFactory(name=NAME, robot=NAME)
     StationFactory(name=NAME)
     ZoneSetFactory(name=NAME)
+    ZoneGrant.objects.create(map_id="map", zone_id="square", robot=NAME, granted_at=timezone.now())
 
 
 def answered(endpoint: Endpoint) -> int:
@@ -103,6 +106,7 @@ def test_the_walk_finds_every_endpoint_of_the_reference_and_ours():
         "DELETE /zone_set/acc1",
         "POST /zone_set/acc1/enable",
         "POST /zone_set/acc1/disable",
+        "POST /zone_set/acc1/revoke",
         "GET /zone_set/watch",
     }
     assert {endpoint.path for endpoint in PUBLIC} == PUBLIC_PATHS

@@ -34,6 +34,7 @@ ENDPOINTS = {
     "/zone_set/{name}": {"get", "delete"},
     "/zone_set/{name}/enable": {"post"},
     "/zone_set/{name}/disable": {"post"},
+    "/zone_set/{name}/revoke": {"post"},
     "/health": {"get"},
     "/behaviors": {"get"},
 }

@@ -147,7 +147,9 @@ def test_the_zone_passes_to_the_waiting_robot_once_the_holder_has_left_it(
 
 
 @pytest.mark.parametrize("gone", ["offline", "deleted"])
-def test_a_robot_offline_or_deleted_holds_nothing(zone_set: ZoneSet, make_robot: MakeRobot, gone: str) -> None:
+def test_a_robot_offline_or_deleted_holds_nothing(
+    zone_set: ZoneSet, make_robot: MakeRobot, gone: str
+) -> None:
     zones_plan_run()
     a = on_route(make_robot, A_START, A_ROUTE)
     b = on_route(make_robot, B_START, B_ROUTE)

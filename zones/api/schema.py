@@ -3,7 +3,7 @@
 from drf_spectacular.utils import OpenApiExample
 
 from kit.api.schema import DETAIL_RESPONSE, SCHEMA_ERROR_EXAMPLE, bad_request
-from zones.api.serializers import ZoneSetCreateSerializer, ZoneSetSerializer
+from zones.api.serializers import ZoneGrantRevokeSerializer, ZoneSetCreateSerializer, ZoneSetSerializer
 
 AISLE = {
     "zone_id": "aisle1",
@@ -137,4 +137,37 @@ ZONE_SET_DELETE = dict(
     description="Deletes a disabled zone set; a map's enabled zone set is refused.",
     responses={200: DETAIL_RESPONSE, 400: bad_request(NOT_FOUND_TO_CHANGE_EXAMPLE, ENABLED_EXAMPLE)},
     examples=[OpenApiExample("Deleted", value={"detail": "floor1-v0 is DELETED"})],
+)
+
+ZONE_GRANT_REVOKE = dict(
+    operation_id="zone_grant_revoke",
+    summary="Revoke a robot's grant of a zone",
+    description=(
+        "Takes back the grant of a RELEASE zone of this (enabled) zone set that the robot holds. A robot not "
+        "yet in the zone loses it and waits at the zone's edge until it is granted again; one already in it "
+        "(or whose released order base crosses it) keeps it until it has left; a VDA 5050 3.0 robot is "
+        "answered REVOKED on its responses topic. Applied by the next zone plan run, at once."
+    ),
+    request=ZoneGrantRevokeSerializer,
+    responses={
+        200: DETAIL_RESPONSE,
+        400: bad_request(
+            NOT_FOUND_EXAMPLE,
+            OpenApiExample(
+                "No such grant",
+                value={
+                    "message": "Robot carter01 holds no grant of zone aisle1 of zone set floor1-v1.",
+                    "error_code": "USAGE",
+                },
+                status_codes=["400"],
+            ),
+            SCHEMA_ERROR_EXAMPLE,
+        ),
+    },
+    examples=[
+        OpenApiExample("Revoke", value={"robot": "carter01", "zone_id": "aisle1"}, request_only=True),
+        OpenApiExample(
+            "Revoked", value={"detail": "Grant of zone aisle1 to carter01 is REVOKED"}, response_only=True
+        ),
+    ],
 )

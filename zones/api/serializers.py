@@ -149,6 +149,13 @@ class ZoneSetCreateSerializer(ObjectNameSerializer, ZoneSetSpecSerializer):
     """A zone set's content plus its name (the zoneSetId) or name prefix."""
 
 
+class ZoneGrantRevokeSerializer(StrictSerializer):
+    """A grant to take back: the robot and the zone (of this zone set) it holds."""
+
+    robot = ObjectNameField(help_text="The robot holding the grant.")
+    zone_id = ObjectNameField(help_text="The RELEASE zone of this zone set it holds.")
+
+
 # --- what a client gets ---------------------------------------------------------------------------------
 
 

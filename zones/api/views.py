@@ -10,11 +10,17 @@ from changes.choices import ChangeKind
 from changes.views import Source, WatchedViewSet
 from kit.api.serializers import body_validated
 from zones.api import schema
-from zones.api.serializers import ZoneSetCreateSerializer, ZoneSetSerializer
+from zones.api.serializers import ZoneGrantRevokeSerializer, ZoneSetCreateSerializer, ZoneSetSerializer
 from zones.filters import ZoneSetFilter
 from zones.models import ZoneSet
 from zones.selectors import zone_set_get, zone_set_list
-from zones.services import zone_set_create, zone_set_delete, zone_set_disable, zone_set_enable
+from zones.services import (
+    zone_grant_revoke,
+    zone_set_create,
+    zone_set_delete,
+    zone_set_disable,
+    zone_set_enable,
+)
 
 # What the streams show of zone sets (GET /zone_set/watch, GET /events): GET /zone_set's filters, GET
 # /zone_set/{name}'s JSON.
@@ -61,3 +67,15 @@ class ZoneSetViewSet(WatchedViewSet):
     def disable(self, request: Request, name: str) -> Response:
         zone_set = zone_set_disable(actor=request_actor(request), zone_set=zone_set_get(name=name))
         return Response(ZoneSetSerializer(zone_set).data)
+
+    @extend_schema(**schema.ZONE_GRANT_REVOKE)
+    @action(detail=True, methods=["post"])
+    def revoke(self, request: Request, name: str) -> Response:
+        body = body_validated(ZoneGrantRevokeSerializer, request.data)
+        zone_grant_revoke(
+            actor=request_actor(request),
+            zone_set=zone_set_get(name=name),
+            robot=body["robot"],
+            zone_id=body["zone_id"],
+        )
+        return Response({"detail": f"Grant of zone {body['zone_id']} to {body['robot']} is REVOKED"})

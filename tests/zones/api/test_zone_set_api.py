@@ -5,10 +5,11 @@ PostgreSQL)."""
 import re
 
 import pytest
+from django.utils import timezone
 
 from access.models import WriteRecord
 from tests.zones.bodies import ACTION, BOWTIE, SQUARE, TRIANGLE, ZONES, zone, zone_set
-from zones.models import MAX_CAPACITY, MAX_VERTICES, ZoneSet
+from zones.models import MAX_CAPACITY, MAX_VERTICES, ZoneGrant, ZoneSet
 
 pytestmark = pytest.mark.django_db
 
@@ -330,3 +331,27 @@ def test_the_list_filters_by_map_enabled_and_names(api):
     assert names("?enabled=false&map_id=map") == ["a"]
     assert names("?names=c&names=a") == ["a", "c"]
     assert api.get("/zone_set?enabled=perhaps").status_code == 400
+
+
+def test_a_grant_is_revoked_through_the_api_and_unknown_ones_are_a_400(api):
+    api.post("/zone_set", zone_set(name="floor"), format="json")
+    api.post("/zone_set/floor/enable")
+    ZoneGrant.objects.create(map_id="map", zone_id="aisle", robot="carter01", granted_at=timezone.now())
+
+    revoked = api.post("/zone_set/floor/revoke", {"robot": "carter01", "zone_id": "aisle"}, format="json")
+    again = api.post("/zone_set/floor/revoke", {"robot": "carter01", "zone_id": "aisle"}, format="json")
+    unknown_zone = api.post("/zone_set/floor/revoke", {"robot": "carter01", "zone_id": "nope"}, format="json")
+    bad_body = api.post("/zone_set/floor/revoke", {"robot": "carter01"}, format="json")
+    missing = api.post("/zone_set/nope/revoke", {"robot": "carter01", "zone_id": "aisle"}, format="json")
+
+    assert (revoked.status_code, revoked.json()) == (
+        200,
+        {"detail": "Grant of zone aisle to carter01 is REVOKED"},
+    )
+    assert ZoneGrant.objects.get().revoked_at is not None
+    assert (again.status_code, again.json()["error_code"]) == (400, "USAGE")
+    assert "holds no grant" in again.json()["message"]
+    assert (unknown_zone.status_code, unknown_zone.json()["error_code"]) == (400, "USAGE")
+    assert bad_body.status_code == 400 and bad_body.json()["detail"][0]["loc"] == ["body", "zone_id"]
+    assert missing.json() == {"detail": 'Did not find "zone_set" with name "nope"'}
+    assert WriteRecord.objects.filter(action="zone_grant_revoke", object_name="floor").count() == 1
