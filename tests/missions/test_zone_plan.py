@@ -14,14 +14,16 @@ from django.utils import timezone
 
 from kit.api.errors import UsageError
 from missions.models import Mission
+from missions.robot_step import robot_step
 from missions.services import mission_create
 from missions.zone_plan import zones_plan_run
 from robots.models import Robot
 from robots.services import robot_rows_delete
-from tests.dispatch.builders import on_order
+from tests.dispatch.builders import on_order, robot_state
 from tests.factories import TEST_ACTOR, ZoneSetFactory
 from tests.missions.test_robot_step import orders, put_state, step
-from vda5050.models import OrderContent
+from vda5050.models import OrderContent, Request, ResponsesContent
+from vda5050.topics import Topic
 from zones.models import ZoneGrant, ZoneReach, ZoneSet
 from zones.services import zone_grant_revoke, zone_set_disable, zone_set_enable
 
@@ -217,3 +219,52 @@ def test_disabling_the_zone_set_lets_everything_go_and_the_held_back_base_is_rel
     [update] = orders(step(b))
     assert released(update) == [0, 2, 4]
     assert Robot.objects.get(name=a.name).zone_access == {}
+
+
+def asks(robot: Robot, request_id: str, zone_set: ZoneSet, *, header_id: int = 2) -> None:
+    """The 3.0 robot, idle at (5, 5), asks for access to the square."""
+    Robot.objects.filter(name=robot.name).update(
+        online=True, pose_x=5.0, pose_y=5.0, pose_map_id="map", last_state_at=timezone.now()
+    )
+    request = Request(
+        request_id=request_id,
+        request_type="ACCESS",
+        request_status="REQUESTED",
+        zone_id="square",
+        zone_set_id=zone_set.name,
+    )
+    state = robot_state(pose=(5.0, 5.0, 0.0, "map")).model_copy(update={"zone_requests": [request]})
+    put_state(robot, header_id=header_id, state=state)
+
+
+def responses(outcome: Any) -> list[tuple[str, str]]:
+    return [
+        (response.request_id, response.grant_type)
+        for message in outcome.messages
+        if isinstance(message.content, ResponsesContent)
+        for response in message.content.responses
+    ]
+
+
+def test_3_0_zone_requests_are_answered_once_on_the_responses_topic_through_the_outbox(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    first, second = make_robot(prefix="zone"), make_robot(prefix="zone")
+    Robot.objects.filter(name__in=[first.name, second.name]).update(protocol_version="3.0.0")
+    first, second = Robot.objects.get(name=first.name), Robot.objects.get(name=second.name)
+    asks(first, "r1", zone_set)
+    zones_plan_run()
+    granted = robot_step(name=first.name)
+    asks(second, "r2", zone_set)
+    assert responses(robot_step(name=second.name)) == []  # not answered yet: it asks for a plan run
+
+    zones_plan_run()
+    queued = robot_step(name=second.name)
+
+    assert responses(granted) == [("r1", "GRANTED")]
+    assert responses(queued) == [("r2", "QUEUED")]
+    assert [(m.topic, m.header_id) for m in granted.wire if m.topic == Topic.RESPONSES] == [
+        (Topic.RESPONSES, 0)
+    ]
+    assert responses(robot_step(name=first.name)) == []  # sent once
+    assert holders() == {("square", first.name)}
