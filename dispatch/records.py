@@ -31,7 +31,8 @@ class DispatchSettings:
 @dataclass(frozen=True)
 class ZoneReach:
     """What the zone plan (`dispatch.zones.decide`, stored by `zones.plan`) allows a robot while some map
-    has an enabled RELEASE zone; a robot without one (None) is not held back by zones at all.
+    has an enabled RELEASE zone; a robot without one (None) is not held back by zones at all. A robot the
+    plan has not seen yet on a map with an enabled RELEASE zone gets the empty reach: nothing but starts.
 
     Its order's base may hold the nodes of order `order_id` up to sequenceId `release_through`: of any
     other order (a new one, before the plan has seen it), no node beyond the robot's own position."""

@@ -57,7 +57,9 @@ from vda5050.codec import encode, header_for, parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
 from vda5050.topics import RobotAddress, Topic
+from vda5050.zones import ZoneType
 from zones.models import ZoneReach as ZoneReachRow
+from zones.models import ZoneSet
 
 logger = logging.getLogger(__name__)
 
@@ -67,6 +69,12 @@ logger = logging.getLogger(__name__)
 # lock what they read until the step commits. A robot's next mission is its queue's highest-priority one,
 # the first queued among equals (a running one is never preempted: it comes first whatever its priority).
 _FINAL_ACTION_STATUSES_SQL = ", ".join(f"'{status}'" for status in sorted(FINAL))
+# The maps with an enabled RELEASE zone, read only for a robot without a zone reach (the zone plan has not
+# seen it yet): on those, its orders are held back as if its reach allowed nothing (`_may_be_on`).
+ZONED_MAPS_SQL = f"""
+    SELECT s.map_id FROM {ZoneSet._meta.db_table} s
+    WHERE s.enabled AND jsonb_path_exists(s.zones, '$[*] ? (@.zone_type == "{ZoneType.RELEASE}")')
+"""
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
         r.instant_actions_key_source = '{SettingSource.OPERATOR}',
@@ -80,7 +88,8 @@ ROBOT_FOR_STEP_SQL = f"""
               AND (a.status IS NULL OR a.status NOT IN ({_FINAL_ACTION_STATUSES_SQL}))
         ),
         z.robot IS NOT NULL, z.order_id, z.release_through, z.waiting, z.responses, z.responses_version,
-        z.responses_sent, z.next_responses_header_id
+        z.responses_sent, z.next_responses_header_id,
+        CASE WHEN z.robot IS NULL THEN ARRAY({ZONED_MAPS_SQL}) END
     FROM {Robot._meta.db_table} r LEFT JOIN {ZoneReachRow._meta.db_table} z ON z.robot = r.name
     WHERE r.name = %s FOR UPDATE OF r
 """
@@ -331,6 +340,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         responses_version,
         responses_sent,
         next_responses_header_id,
+        zoned_maps,
     ) = row
     outcome.address = RobotAddress(*address)
     outcome.instant_actions_key = actions_key
@@ -354,6 +364,8 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             responses=tuple((request, grant) for request, grant in json_column(responses) or ()),
             responses_due=responses_version > responses_sent,
         )
+    elif zoned_maps and _may_be_on(state, zoned_maps):
+        zone_reach = ZoneReach()  # not seen by the zone plan yet: a new order releases its start alone
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
     view = RobotView(
         name=name,
@@ -462,6 +474,12 @@ def dispatch_settings() -> DispatchSettings:
         start_deviation_xy=settings.DISPATCH_START_NODE_DEVIATION,
         order_stall=timedelta(seconds=settings.DISPATCH_ORDER_STALL_SECONDS),
     )
+
+
+def _may_be_on(state: State | None, maps: list[str]) -> bool:
+    """The robot is on one of `maps`, or does not say where it is (then it may be)."""
+    position = state.agv_position if state is not None else None
+    return position is None or position.map_id in maps
 
 
 def _live_state(name: str) -> tuple[State | None, datetime | None, dict[str, int]]:

@@ -39,19 +39,21 @@ def zone_set() -> ZoneSet:
     return zone_set_enable(actor=TEST_ACTOR, zone_set=ZoneSetFactory())
 
 
-def at(robot: Robot, x: float, y: float, *, header_id: int = 1, **state: Any) -> None:
-    """The robot reports (x, y) on map `map`, in its live state and in its row (the bridge's flush)."""
+def at(robot: Robot, x: float, y: float, *, header_id: int = 1, map_id: str = "map", **state: Any) -> None:
+    """The robot reports (x, y) on `map_id`, in its live state and in its row (the bridge's flush)."""
     Robot.objects.filter(name=robot.name).update(
-        online=True, pose_x=x, pose_y=y, pose_map_id="map", last_state_at=timezone.now()
+        online=True, pose_x=x, pose_y=y, pose_map_id=map_id, last_state_at=timezone.now()
     )
-    put_state(robot, header_id=header_id, pose=(x, y, 0.0, "map"), **state)
+    put_state(robot, header_id=header_id, pose=(x, y, 0.0, map_id), **state)
 
 
-def on_route(make_robot: MakeRobot, start: tuple[float, float], route: list[tuple[float, float]]) -> Robot:
-    """An online robot at `start` with a mission through `route`, its first order sent and taken."""
+def on_route(
+    make_robot: MakeRobot, start: tuple[float, float], route: list[tuple[float, float]], map_id: str = "map"
+) -> Robot:
+    """An online robot at `start` on `map_id` with a mission through `route` there, not stepped yet."""
     robot = make_robot(prefix="zone")
-    at(robot, *start)
-    waypoints = [{"x": x, "y": y, "theta": 0.0, "map_id": "map"} for x, y in route]
+    at(robot, *start, map_id=map_id)
+    waypoints = [{"x": x, "y": y, "theta": 0.0, "map_id": map_id} for x, y in route]
     mission_create(
         actor=TEST_ACTOR,
         name=f"m-{robot.name}",
@@ -93,6 +95,31 @@ def test_a_new_order_releases_nothing_but_its_start_until_the_plan_has_seen_it(
 
     assert released(order) == [0]
     assert [node.sequence_id for node in order.nodes] == [0, 2, 4]
+
+
+def test_a_robot_the_plan_has_never_seen_releases_only_its_start_on_a_zoned_map(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    robot = on_route(make_robot, A_START, A_ROUTE)  # no plan run since: the robot has no reach yet
+    assert not ZoneReach.objects.filter(robot=robot.name).exists()
+
+    outcome = step(robot)
+
+    [order] = orders(outcome)
+    assert released(order) == [0]
+    assert outcome.zones_plan is False  # asked for (and reset) once committed
+    zones_plan_run()
+    assert ZoneReach.objects.filter(robot=robot.name).exists()
+
+
+def test_a_robot_the_plan_has_never_seen_is_not_held_back_on_a_map_without_zones(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    robot = on_route(make_robot, A_START, A_ROUTE, map_id="elsewhere")
+
+    [order] = orders(step(robot))
+
+    assert released(order) == [0, 2, 4]
 
 
 def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at_its_edge(
