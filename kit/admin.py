@@ -9,12 +9,25 @@ from django.contrib import admin, messages
 from django.contrib.admin.utils import model_ngettext
 from django.db.models import Model
 from django.http import HttpRequest, HttpResponse, HttpResponseRedirect
+from django.utils.html import format_html, format_html_join
+from django.utils.safestring import SafeString
 from rest_framework import serializers
 
 from kit.api.errors import UsageError
 from kit.api.names import object_name_validator
 
 M = TypeVar("M", bound=Model)
+
+
+def html_table(headers: Iterable[str], rows: Iterable[Iterable[object]]) -> SafeString:
+    """A read-only list (what a robot reports, what was asked of it, who holds a zone) as a small HTML
+    table, escaped."""
+
+    def row(cells: Iterable[object], tag: str) -> SafeString:
+        return format_html_join("", f"<{tag}>{{}}</{tag}>", ((cell,) for cell in cells))
+
+    body = format_html_join("", "<tr>{}</tr>", ((row(cells, "td"),) for cells in rows))
+    return format_html("<table><tr>{}</tr>{}</table>", row(headers, "th"), body)
 
 
 def call_service_for_each(

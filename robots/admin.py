@@ -10,7 +10,6 @@ from django.contrib.admin.utils import flatten_fieldsets
 from django.db.models import QuerySet
 from django.forms.models import model_to_dict
 from django.http import HttpRequest
-from django.utils.html import format_html, format_html_join
 from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
@@ -19,6 +18,7 @@ from kit.admin import (
     SpecAdminForm,
     call_service_for_each,
     delete_through_service,
+    html_table,
     pose_text,
     serializer_errors,
     spec_validated,
@@ -48,6 +48,7 @@ STATUS_FIELDS = (
     "battery_level",
     "charge_requested",
     "charging_waiting_reason",
+    "zones",
     "pose",
     "position_initialized",
     "last_state_at",
@@ -67,16 +68,6 @@ IDENTITY_FIELDS = (
     "compatibility_rules",
 )
 SPEC_FIELDS = (*EDITABLE_SPEC_FIELDS, "switch_teleop")
-
-
-def html_table(headers: Iterable[str], rows: Iterable[Iterable[object]]) -> SafeString:
-    """A read-only list (what a robot reports, what was asked of it) as a small HTML table, escaped."""
-
-    def row(cells: Iterable[object], tag: str) -> SafeString:
-        return format_html_join("", f"<{tag}>{{}}</{tag}>", ((cell,) for cell in cells))
-
-    body = format_html_join("", "<tr>{}</tr>", ((row(cells, "td"),) for cells in rows))
-    return format_html("<table><tr>{}</tr>{}</table>", row(headers, "th"), body)
 
 
 def robot_spec(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -168,6 +159,15 @@ class RobotAdmin(ServiceAdmin):
     @admin.display(description="pose")
     def pose(self, robot: Robot) -> str:
         return pose_text(robot)
+
+    @admin.display(description="zones")
+    def zones(self, robot: Robot) -> str:
+        """The RELEASE zones it holds and waits for (the zone plan's; Zone sets admin: its grants)."""
+        held, waiting = (
+            ", ".join(f"{zone['map_id']}/{zone['zone_id']}" for zone in robot.zone_access.get(key, ()))
+            for key in ("held", "waiting")
+        )
+        return f"holds {held or 'none'}; waits for {waiting or 'none'}"
 
     @admin.display(description="maps")
     def maps_reported(self, robot: Robot) -> SafeString | str:

@@ -8,12 +8,21 @@ from typing import Any
 from django.contrib import admin
 from django.db.models import QuerySet
 from django.http import HttpRequest
+from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
-from kit.admin import ServiceAdmin, SpecAdminForm, call_service_for_each, spec_validated
+from kit.admin import ServiceAdmin, SpecAdminForm, call_service_for_each, html_table, spec_validated
+from kit.api.errors import UsageError
 from zones.api.serializers import ZoneSetSpecSerializer
-from zones.models import ZoneSet
-from zones.services import zone_set_create, zone_set_delete, zone_set_disable, zone_set_enable
+from zones.models import ZoneGrant, ZoneSet
+from zones.selectors import zone_grants, zone_set_enabled_on
+from zones.services import (
+    zone_grant_revoke,
+    zone_set_create,
+    zone_set_delete,
+    zone_set_disable,
+    zone_set_enable,
+)
 
 SPEC_FIELDS = ("map_id", "description", "zones")
 
@@ -46,13 +55,24 @@ class ZoneSetAdmin(ServiceAdmin):
     fieldsets = (
         (None, {"fields": ("name",)}),
         ("Content", {"fields": SPEC_FIELDS}),
-        ("Status", {"fields": ("enabled",)}),
+        ("Status", {"fields": ("enabled", "grants")}),
         ("Timestamps", {"fields": ("created_at", "updated_at")}),
     )
 
     def get_readonly_fields(self, request: HttpRequest, obj: ZoneSet | None = None) -> tuple[str, ...]:
         content = ("name", *SPEC_FIELDS) if obj is not None else ()
-        return (*content, "enabled", "created_at", "updated_at")
+        return (*content, "enabled", "grants", "created_at", "updated_at")
+
+    @admin.display(description="grants")
+    def grants(self, zone_set: ZoneSet) -> SafeString | str:
+        """Who holds its RELEASE zones (Zone grants: revoke one there)."""
+        grants = list(zone_grants(map_id=zone_set.map_id)) if zone_set.enabled else []
+        if not grants:
+            return "none"
+        return html_table(
+            ("zone", "robot", "granted at", "revoked at"),
+            ((g.zone_id, g.robot, g.granted_at, g.revoked_at or "") for g in grants),
+        )
 
     @admin.display(description="zones")
     def zone_count(self, zone_set: ZoneSet) -> int:
@@ -90,4 +110,43 @@ class ZoneSetAdmin(ServiceAdmin):
             queryset,
             lambda zone_set: zone_set_disable(actor=request_actor(request), zone_set=zone_set),
             "Disabled",
+        )
+
+
+def _grant_revoke(actor: str, grant: ZoneGrant) -> None:
+    """A grant's revoke through the service, with its map's enabled zone set (none: it goes anyway)."""
+    zone_set = zone_set_enabled_on(map_id=grant.map_id)
+    if zone_set is None:
+        raise UsageError(f"Map {grant.map_id} has no enabled zone set: the grant of {grant} goes by itself.")
+    zone_grant_revoke(actor=actor, zone_set=zone_set, robot=grant.robot, zone_id=grant.zone_id)
+
+
+@admin.register(ZoneGrant)
+class ZoneGrantAdmin(admin.ModelAdmin):
+    """Who holds which RELEASE zone, as the zone plan decided; an operator may take a grant back (the
+    same service as POST /zone_set/{name}/revoke), nothing else is the operator's to edit."""
+
+    list_display = ("robot", "map_id", "zone_id", "granted_at", "revoked_at")
+    list_filter = ("map_id", "zone_id")
+    search_fields = ("robot",)
+    ordering = ("map_id", "zone_id", "granted_at")
+    list_per_page = 50
+    actions = ("revoke",)
+    readonly_fields = list_display
+
+    def has_add_permission(self, request: HttpRequest) -> bool:
+        return False
+
+    def has_change_permission(self, request: HttpRequest, obj: ZoneGrant | None = None) -> bool:
+        return obj is None and super().has_change_permission(request)  # the list's action, no edits
+
+    def has_delete_permission(self, request: HttpRequest, obj: ZoneGrant | None = None) -> bool:
+        return False
+
+    @admin.action(
+        description="Revoke (a robot already inside keeps it until it has left)", permissions=["change"]
+    )
+    def revoke(self, request: HttpRequest, queryset: QuerySet[ZoneGrant]) -> None:
+        call_service_for_each(
+            self, request, queryset, lambda grant: _grant_revoke(request_actor(request), grant), "Revoked"
         )

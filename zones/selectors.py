@@ -8,7 +8,7 @@ from django.db.models import QuerySet
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
 from zones.filters import ZoneSetFilter
-from zones.models import ZoneSet
+from zones.models import ZoneGrant, ZoneSet
 
 
 def zone_set_get(*, name: str, to_change: bool = False) -> ZoneSet:
@@ -27,3 +27,13 @@ def zone_set_list(*, filters: Mapping[str, Any] | None = None) -> QuerySet[ZoneS
 def zone_sets_enabled() -> bool:
     """Some map has an enabled zone set (beat then runs the zone plan, `missions.zone_plan`)."""
     return ZoneSet.objects.filter(enabled=True).exists()
+
+
+def zone_set_enabled_on(*, map_id: str) -> ZoneSet | None:
+    """The map's enabled zone set, if it has one."""
+    return ZoneSet.objects.filter(map_id=map_id, enabled=True).first()
+
+
+def zone_grants(*, map_id: str) -> QuerySet[ZoneGrant]:
+    """The grants of the map's RELEASE zones, in the order they were given."""
+    return ZoneGrant.objects.filter(map_id=map_id).order_by("zone_id", "granted_at", "id")

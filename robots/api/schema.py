@@ -55,6 +55,7 @@ ROBOT_EXAMPLE = OpenApiExample(
             "info_messages": None,
             "errors": {},
             "maps": [],
+            "zone_access": {"held": [], "waiting": []},
             "charge_requested": False,
             "charging_waiting_reason": None,
         },

@@ -1,5 +1,6 @@
 """Robot API bodies: the spec a client sends (create, PUT) and the robot object every endpoint returns."""
 
+from collections.abc import Mapping
 from typing import Any
 
 from django.conf import settings
@@ -228,6 +229,30 @@ class RobotZoneSetSerializer(serializers.Serializer):
     )
 
 
+class ZoneRefSerializer(serializers.Serializer):
+    """A zone of a map's enabled zone set."""
+
+    map_id = serializers.CharField()
+    zone_id = serializers.CharField()
+
+
+class RobotZoneAccessSerializer(serializers.Serializer):
+    """The RELEASE zones the robot holds and waits for, as the zone plan last decided (Zone access)."""
+
+    held = ZoneRefSerializer(
+        many=True, help_text="Zones it holds: it is inside, its order's base crosses them, or it asked (3.0)."
+    )
+    waiting = ZoneRefSerializer(
+        many=True,
+        help_text="Zones it waits for, all at once, at the edge of its route's next leg; empty if it waits "
+        "for none.",
+    )
+
+    def to_representation(self, instance: Mapping[str, Any]) -> dict[str, Any]:
+        """Stored empty while no map has an enabled RELEASE zone: then it holds and waits for nothing."""
+        return super().to_representation({"held": [], "waiting": [], **instance})
+
+
 class MapActionSerializer(serializers.Serializer):
     """A map action asked of the robot, tracked until the robot reports it FINISHED or FAILED."""
 
@@ -278,6 +303,7 @@ class RobotStatusSerializer(serializers.Serializer):
     zone_sets = RobotZoneSetSerializer(
         many=True, help_text="The zone sets the robot reports (VDA 5050 3.0); empty if it reports none."
     )
+    zone_access = RobotZoneAccessSerializer()
     charge_requested = serializers.BooleanField(
         help_text="Asked to charge now (POST /robot/{name}/charge) and not yet holding a charger."
     )

@@ -262,6 +262,18 @@ def test_the_zone_set_filters_zone_types_and_limits_are_documented(schema):
     assert "put" not in schema["paths"]["/zone_set/{name}"]
 
 
+def test_a_robots_zone_access_is_documented(schema):
+    components = schema["components"]["schemas"]
+    access = components["RobotZoneAccess"]
+
+    assert components["RobotStatus"]["properties"]["zone_access"] == {
+        "$ref": "#/components/schemas/RobotZoneAccess"
+    }
+    assert set(access["required"]) == {"held", "waiting"}
+    assert all(access["properties"][field]["description"] for field in ("held", "waiting"))
+    assert set(components["ZoneRef"]["required"]) == {"map_id", "zone_id"}
+
+
 PUBLIC_OPERATIONS = {("/health", "get")}
 
 

@@ -230,6 +230,16 @@ def test_the_change_page_shows_the_version_its_source_and_the_compatibility_rule
     assert listed(listing) == [robot.name]
 
 
+def test_the_change_page_shows_the_zones_the_robot_holds_and_waits_for(admin_client: Client):
+    robot = RobotFactory(
+        zone_access={"held": [{"map_id": "map", "zone_id": "aisle"}], "waiting": []},
+    )
+
+    page = admin_client.get(change_url(robot)).content.decode()
+
+    assert "holds map/aisle; waits for none" in page
+
+
 def test_an_admin_save_keeps_what_the_robot_taught(admin_client: Client, woken: list[str]):
     robot = RobotFactory(**LEARNED_LEGACY)
 

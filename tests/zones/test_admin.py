@@ -1,6 +1,6 @@
 """The zone set admin as an operator uses it: the list, its filters and search, add through the service
 (refusing what the API refuses), an existing set read-only, enable/disable actions, deletion of the
-enabled set refused."""
+enabled set refused; the grants shown with their zone set and revoked through the service."""
 
 import json
 
@@ -9,11 +9,12 @@ from django.contrib import messages
 from django.contrib.messages import get_messages
 from django.test import Client
 from django.urls import reverse
+from django.utils import timezone
 
 from access.models import WriteRecord
 from tests.factories import ZoneSetFactory
 from tests.zones.bodies import BOWTIE, zone
-from zones.models import ZoneSet
+from zones.models import ZoneGrant, ZoneSet
 
 pytestmark = pytest.mark.django_db
 
@@ -79,3 +80,32 @@ def test_enable_and_disable_actions_and_the_enabled_set_is_not_deleted(admin_cli
     assert messages.WARNING in levels
     admin_client.post(CHANGELIST, {"action": "disable", "_selected_action": ["b"]})
     assert ZoneSet.objects.get(name="b").enabled is False
+
+
+GRANTS = reverse("admin:zones_zonegrant_changelist")
+
+
+def test_the_enabled_set_shows_who_holds_its_zones(admin_client: Client):
+    ZoneSetFactory(name="floor1", enabled=True)
+    ZoneGrant.objects.create(map_id="map", zone_id="square", robot="carter01", granted_at=timezone.now())
+
+    page = admin_client.get(reverse("admin:zones_zoneset_change", args=["floor1"])).content.decode()
+
+    assert "<td>square</td><td>carter01</td>" in page
+
+
+def test_revoke_goes_through_the_service_and_a_grant_revoked_already_is_refused(admin_client: Client):
+    ZoneSetFactory(name="floor1", enabled=True)
+    grant = ZoneGrant.objects.create(
+        map_id="map", zone_id="square", robot="carter01", granted_at=timezone.now()
+    )
+    assert admin_client.get(GRANTS).status_code == 200
+
+    first = admin_client.post(GRANTS, {"action": "revoke", "_selected_action": [grant.pk]}, follow=True)
+    again = admin_client.post(GRANTS, {"action": "revoke", "_selected_action": [grant.pk]}, follow=True)
+
+    assert ZoneGrant.objects.get(pk=grant.pk).revoked_at is not None
+    assert list(WriteRecord.objects.values_list("action", flat=True)) == ["zone_grant_revoke"]
+    assert [m.level for m in get_messages(first.wsgi_request)] == [messages.SUCCESS]
+    assert [m.level for m in get_messages(again.wsgi_request)] == [messages.WARNING]
+    assert admin_client.post(reverse("admin:zones_zonegrant_change", args=[grant.pk]), {}).status_code == 403

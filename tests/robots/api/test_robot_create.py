@@ -56,6 +56,7 @@ def test_readme_robot_is_created_with_the_reference_shape(api, woken):
             "errors": {},
             "maps": [],
             "zone_sets": [],
+            "zone_access": {"held": [], "waiting": []},
             "charge_requested": False,
             "charging_waiting_reason": None,
         },

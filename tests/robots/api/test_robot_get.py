@@ -30,6 +30,7 @@ def test_returns_the_robot_with_its_status(api):
         maps=[{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
         zone_sets=[{"map_id": "map", "zone_set_id": "floor1-v1", "zone_set_status": "ENABLED"}],
         factsheet={"typeSpecification": {"supportedZones": ["RELEASE", "BLOCKED"]}},
+        zone_access={"held": [{"map_id": "map", "zone_id": "aisle"}], "waiting": []},
     )
 
     response = api.get("/robot/carter01")
@@ -57,6 +58,7 @@ def test_returns_the_robot_with_its_status(api):
         "errors": {},
         "maps": [{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
         "zone_sets": [{"map_id": "map", "zone_set_id": "floor1-v1", "zone_set_status": "ENABLED"}],
+        "zone_access": {"held": [{"map_id": "map", "zone_id": "aisle"}], "waiting": []},
         "charge_requested": False,
         "charging_waiting_reason": None,
     }
