@@ -5,8 +5,9 @@ killed mid-run), reads the maps' enabled RELEASE zones, every robot with its run
 progress and its zone reach, the grants, and the 3.0 robots' zoneRequests from their latest states; decides;
 and writes in the same transaction the grants, each robot's reach (how far its order's base may go, which
 zones it waits for, the answers to its requests) and the zones each robot holds and waits for in its status.
-The robots whose reach changed get a step, which carries it out (`dispatch.step._reach_further`, the
-responses topic).
+The robots whose reach changed, and those whose order's base is still behind their reach, get a step, which
+carries it out (`dispatch.step._reach_further`, the responses topic): beat's runs make up for a step that
+missed a reach.
 
 A robot counts while it is online (heard within its heartbeat timeout), alive and reporting a position: one
 offline, being deleted or deleted holds nothing. The route a robot still drives is the nodes of its running
@@ -149,8 +150,9 @@ def zones_plan_run() -> ZoneDecision | None:
         _grants_write(cursor, grants, decision, now)
         changed = _reaches_write(cursor, robots, decision, rejected, now)
         _zone_access_write(cursor, robots, decision)
-        if changed:
-            request_steps(changed)
+        to_step = list(dict.fromkeys([*changed, *_behind(robots, decision)]))
+        if to_step:
+            request_steps(to_step)
     return decision
 
 
@@ -302,6 +304,20 @@ def _reaches_write(
             ],
         )
     return [robot.name for robot, _, _ in changed]
+
+
+def _behind(robots: list[_Robot], decision: ZoneDecision) -> list[str]:
+    """The robots whose order's base holds fewer nodes than the plan allows: their step has not extended it
+    yet. Asked for again at every run, not only when the reach changes: a step may have missed the change
+    (it read the robot just before this run committed, and its queued-step marker deduplicated this run's
+    request), or could not extend then (its order not yet accepted, a cancel pending)."""
+    return [
+        robot.name
+        for robot in robots
+        if robot.counts
+        and robot.route is not None
+        and decision.horizons.get(robot.name, 0) > robot.route.released
+    ]
 
 
 def _reach_of(robot: _Robot, decision: ZoneDecision, rejected: tuple[str, ...]) -> _Reach:

@@ -12,6 +12,7 @@ from typing import Any
 import pytest
 from django.utils import timezone
 
+import missions.zone_plan
 from kit.api.errors import UsageError
 from missions.models import Mission
 from missions.robot_step import robot_step
@@ -83,6 +84,21 @@ def holders() -> set[tuple[str, str]]:
     return set(ZoneGrant.objects.values_list("zone_id", "robot"))
 
 
+def both_at_the_square(make_robot: MakeRobot, *, planned: bool = True) -> tuple[Robot, Robot]:
+    """A and B on their routes, each holding its first order (its start alone released); the plan run
+    after that (`planned`) gives A the square and has B wait."""
+    zones_plan_run()
+    a = on_route(make_robot, A_START, A_ROUTE)
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    for robot in (a, b):
+        step(robot)
+        takes(robot, header_id=2)
+    if planned:
+        zones_plan_run()
+    return a, b
+
+
 def test_a_new_order_releases_nothing_but_its_start_until_the_plan_has_seen_it(
     zone_set: ZoneSet, make_robot: MakeRobot
 ) -> None:
@@ -103,12 +119,10 @@ def test_a_robot_the_plan_has_never_seen_releases_only_its_start_on_a_zoned_map(
     robot = on_route(make_robot, A_START, A_ROUTE)  # no plan run since: the robot has no reach yet
     assert not ZoneReach.objects.filter(robot=robot.name).exists()
 
-    outcome = step(robot)
+    [order] = orders(step(robot))
 
-    [order] = orders(outcome)
     assert released(order) == [0]
-    assert outcome.zones_plan is False  # asked for (and reset) once committed
-    zones_plan_run()
+    zones_plan_run()  # which the step asked for: from now on the robot has its reach
     assert ZoneReach.objects.filter(robot=robot.name).exists()
 
 
@@ -125,13 +139,7 @@ def test_a_robot_the_plan_has_never_seen_is_not_held_back_on_a_map_without_zones
 def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at_its_edge(
     zone_set: ZoneSet, make_robot: MakeRobot
 ) -> None:
-    zones_plan_run()
-    a = on_route(make_robot, A_START, A_ROUTE)
-    b = on_route(make_robot, B_START, B_ROUTE)
-    zones_plan_run()
-    for robot in (a, b):
-        step(robot)
-        takes(robot, header_id=2)
+    a, b = both_at_the_square(make_robot, planned=False)
 
     decision = zones_plan_run()
 
@@ -150,17 +158,40 @@ def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at
     assert Robot.objects.get(name=b.name).zone_access["waiting"] == [{"map_id": "map", "zone_id": "square"}]
 
 
+@pytest.fixture
+def stepped(monkeypatch: pytest.MonkeyPatch) -> list[list[str]]:
+    """The robots each plan run asks steps of (its `request_steps` calls)."""
+    calls: list[list[str]] = []
+    monkeypatch.setattr(missions.zone_plan, "request_steps", lambda names: calls.append(sorted(names)))
+    return calls
+
+
+def test_a_robot_whose_base_is_behind_its_reach_is_stepped_at_every_run_until_it_caught_up(
+    zone_set: ZoneSet, make_robot: MakeRobot, stepped: list[list[str]]
+) -> None:
+    zones_plan_run()
+    robot = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    step(robot)
+    takes(robot, header_id=2)  # its start alone released
+    zones_plan_run()  # its reach: through the square
+    stepped.clear()
+
+    zones_plan_run()  # the reach unchanged: a step that missed it gets another chance
+    zones_plan_run()
+
+    assert stepped == [[robot.name], [robot.name]]
+    [update] = orders(step(robot))
+    assert released(update) == [0, 2, 4]
+    stepped.clear()
+    zones_plan_run()
+    assert stepped == []
+
+
 def test_the_zone_passes_to_the_waiting_robot_once_the_holder_has_left_it(
     zone_set: ZoneSet, make_robot: MakeRobot
 ) -> None:
-    zones_plan_run()
-    a = on_route(make_robot, A_START, A_ROUTE)
-    b = on_route(make_robot, B_START, B_ROUTE)
-    zones_plan_run()
-    for robot in (a, b):
-        step(robot)
-        takes(robot, header_id=2)
-    zones_plan_run()
+    a, b = both_at_the_square(make_robot)
     step(a)
     takes(a, header_id=3)  # holds the update
     at(a, 3.0, 1.0, header_id=4, **{})  # through the square, at its last node
@@ -179,14 +210,7 @@ def test_the_zone_passes_to_the_waiting_robot_once_the_holder_has_left_it(
 def test_a_robot_offline_or_deleted_holds_nothing(
     zone_set: ZoneSet, make_robot: MakeRobot, gone: str
 ) -> None:
-    zones_plan_run()
-    a = on_route(make_robot, A_START, A_ROUTE)
-    b = on_route(make_robot, B_START, B_ROUTE)
-    zones_plan_run()
-    for robot in (a, b):
-        step(robot)
-        takes(robot, header_id=2)
-    zones_plan_run()
+    a, b = both_at_the_square(make_robot)
     assert holders() == {("square", a.name)}
     if gone == "offline":
         Robot.objects.filter(name=a.name).update(online=False)
@@ -202,14 +226,7 @@ def test_a_robot_offline_or_deleted_holds_nothing(
 def test_a_revoked_grant_of_a_robot_not_yet_in_the_zone_goes_to_the_next(
     zone_set: ZoneSet, make_robot: MakeRobot
 ) -> None:
-    zones_plan_run()
-    a = on_route(make_robot, A_START, A_ROUTE)
-    b = on_route(make_robot, B_START, B_ROUTE)
-    zones_plan_run()
-    for robot in (a, b):
-        step(robot)
-        takes(robot, header_id=2)
-    zones_plan_run()
+    a, b = both_at_the_square(make_robot)
 
     zone_grant_revoke(actor=TEST_ACTOR, zone_set=zone_set, robot=a.name, zone_id="square")
     zones_plan_run()
@@ -230,14 +247,7 @@ def test_revoking_what_no_robot_holds_is_refused(zone_set: ZoneSet, make_robot: 
 def test_disabling_the_zone_set_lets_everything_go_and_the_held_back_base_is_released(
     zone_set: ZoneSet, make_robot: MakeRobot
 ) -> None:
-    zones_plan_run()
-    a = on_route(make_robot, A_START, A_ROUTE)
-    b = on_route(make_robot, B_START, B_ROUTE)
-    zones_plan_run()
-    for robot in (a, b):
-        step(robot)
-        takes(robot, header_id=2)
-    zones_plan_run()
+    a, b = both_at_the_square(make_robot)
 
     zone_set_disable(actor=TEST_ACTOR, zone_set=zone_set)
     assert zones_plan_run() is None
