@@ -158,6 +158,26 @@ def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at
     assert Robot.objects.get(name=b.name).zone_access["waiting"] == [{"map_id": "map", "zone_id": "square"}]
 
 
+def test_where_a_robot_is_comes_from_its_latest_state_not_its_row(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    """The row's position (the bridge's status flush) may lag: a robot that has just driven into the
+    square holds it as its latest state says."""
+    inside = make_robot(prefix="zone")
+    at(inside, 1.0, 1.0)
+    Robot.objects.filter(name=inside.name).update(pose_x=-5.0, pose_y=-5.0)  # not flushed yet
+    zones_plan_run()
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    step(b)
+    takes(b, header_id=2)
+
+    zones_plan_run()
+
+    assert holders() == {("square", inside.name)}
+    assert ZoneReach.objects.get(robot=b.name).waiting == ["square"]
+
+
 @pytest.fixture
 def stepped(monkeypatch: pytest.MonkeyPatch) -> list[list[str]]:
     """The robots each plan run asks steps of (its `request_steps` calls)."""
