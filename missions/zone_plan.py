@@ -380,10 +380,18 @@ def _zone_access_update(cursor: CursorWrapper, robots: list[_Robot], access: dic
 
 def _let_go(cursor: CursorWrapper, robots: list[_Robot]) -> None:
     """No enabled RELEASE zone: no grants, no reaches (their robots' steps release what orders held back),
-    nothing held or waited for in the robots' status."""
+    nothing held or waited for in the robots' status. The robots whose order is still held back are
+    stepped at every run (beat runs it while one is, `missions.selectors.orders_held_back`), as `_behind`."""
     cursor.execute(f"DELETE FROM {_GRANTS}")
     reached = [robot.name for robot in robots if robot.stored is not None]
     if reached:
         cursor.execute(REACH_DELETE_SQL, [reached])
-        request_steps(reached)
+    held_back = [
+        robot.name
+        for robot in robots
+        if robot.counts and robot.route is not None and robot.route.released < len(robot.route.route)
+    ]
+    to_step = list(dict.fromkeys([*reached, *held_back]))
+    if to_step:
+        request_steps(to_step)
     _zone_access_update(cursor, robots, {robot.name: {} for robot in robots})
