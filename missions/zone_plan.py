@@ -249,17 +249,20 @@ def _with_latest_states(robots: list[_Robot], enabled: dict[str, str]) -> dict[s
         assert robot.route is not None
         if payload is None:
             continue
-        position = orjson.loads(payload).get("agvPosition")
-        if isinstance(position, dict):
-            where = RoutePoint(float(position["x"]), float(position["y"]), str(position["mapId"]))
-            robot.route = replace(robot.route, position=where)
-        if not robot.is_3:
+        if not robot.is_3:  # 2.x: its position alone, without a full parse
+            position = orjson.loads(payload).get("agvPosition")
+            if isinstance(position, dict):
+                where = RoutePoint(float(position["x"]), float(position["y"]), str(position["mapId"]))
+                robot.route = replace(robot.route, position=where)
             continue
         try:
-            requests = parse_state(payload).zone_requests or []
+            state = parse_state(payload)  # 3.0 names its position mobileRobotPosition on the wire
         except ProtocolError:
             continue  # the bridge only stores states it could parse
-        taken, rejected[robot.name] = zone_requests(requests, enabled)
+        if state.agv_position is not None:
+            where = RoutePoint(state.agv_position.x, state.agv_position.y, state.agv_position.map_id)
+            robot.route = replace(robot.route, position=where)
+        taken, rejected[robot.name] = zone_requests(state.zone_requests or [], enabled)
         robot.route = replace(robot.route, requests=taken)
     return rejected
 

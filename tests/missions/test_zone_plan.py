@@ -159,12 +159,15 @@ def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at
     assert Robot.objects.get(name=b.name).zone_access["waiting"] == [{"map_id": "map", "zone_id": "square"}]
 
 
+@pytest.mark.parametrize("version", ["2.0.0", "3.0.0"])  # 3.0 names it mobileRobotPosition on the wire
 def test_where_a_robot_is_comes_from_its_latest_state_not_its_row(
-    zone_set: ZoneSet, make_robot: MakeRobot
+    zone_set: ZoneSet, make_robot: MakeRobot, version: str
 ) -> None:
     """The row's position (the bridge's status flush) may lag: a robot that has just driven into the
     square holds it as its latest state says."""
     inside = make_robot(prefix="zone")
+    Robot.objects.filter(name=inside.name).update(protocol_version=version)
+    inside = Robot.objects.get(name=inside.name)
     at(inside, 1.0, 1.0)
     Robot.objects.filter(name=inside.name).update(pose_x=-5.0, pose_y=-5.0)  # not flushed yet
     zones_plan_run()
