@@ -58,11 +58,14 @@ def put_state(
     header_id: int,
     state: State | None = None,
     arrived_at: float | None = None,
+    version: str = "2.0.0",
     **fields: Any,
 ) -> None:
-    """Store a state as the bridge does: `state` (retargeted to the robot), else one built from `fields`;
-    it arrived at `arrived_at` (epoch s), by default now."""
-    payload = wire(robot, state or robot_state(**fields), header_id=header_id, at=float(header_id))
+    """Store a state as the bridge does (the payload as the robot sent it, speaking `version`): `state`
+    (retargeted to the robot), else one built from `fields`; it arrived at `arrived_at` (epoch s), by
+    default now."""
+    content = state or robot_state(**fields)
+    payload = wire(robot, content, header_id=header_id, at=float(header_id), version=version)
     pipe = livestate.client().pipeline()
     livestate.store_state(
         pipe,

@@ -41,12 +41,14 @@ def zone_set() -> ZoneSet:
     return zone_set_enable(actor=TEST_ACTOR, zone_set=ZoneSetFactory())
 
 
-def at(robot: Robot, x: float, y: float, *, header_id: int = 1, map_id: str = "map", **state: Any) -> None:
+def at(
+    robot: Robot, x: float, y: float, *, header_id: int = 1, map_id: str = "map", version: str = "2.0.0"
+) -> None:
     """The robot reports (x, y) on `map_id`, in its live state and in its row (the bridge's flush)."""
     Robot.objects.filter(name=robot.name).update(
         online=True, pose_x=x, pose_y=y, pose_map_id=map_id, last_state_at=timezone.now()
     )
-    put_state(robot, header_id=header_id, pose=(x, y, 0.0, map_id), **state)
+    put_state(robot, header_id=header_id, pose=(x, y, 0.0, map_id), version=version)
 
 
 def on_route(
@@ -167,8 +169,7 @@ def test_where_a_robot_is_comes_from_its_latest_state_not_its_row(
     square holds it as its latest state says."""
     inside = make_robot(prefix="zone")
     Robot.objects.filter(name=inside.name).update(protocol_version=version)
-    inside = Robot.objects.get(name=inside.name)
-    at(inside, 1.0, 1.0)
+    at(inside, 1.0, 1.0, version=version)
     Robot.objects.filter(name=inside.name).update(pose_x=-5.0, pose_y=-5.0)  # not flushed yet
     zones_plan_run()
     b = on_route(make_robot, B_START, B_ROUTE)
@@ -218,7 +219,7 @@ def test_the_zone_passes_to_the_waiting_robot_once_the_holder_has_left_it(
     a, b = both_at_the_square(make_robot)
     step(a)
     takes(a, header_id=3)  # holds the update
-    at(a, 3.0, 1.0, header_id=4, **{})  # through the square, at its last node
+    at(a, 3.0, 1.0, header_id=4)  # through the square, at its last node
     put_state(a, header_id=5, state=on_order(sent_order(a), 4, pose=(3.0, 1.0, 0.0, "map")))
     step(a)
 

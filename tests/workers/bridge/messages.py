@@ -26,9 +26,9 @@ from workers.bridge.loop import Bridge
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
 
 
-def address(robot: Robot | str) -> RobotAddress:
+def address(robot: Robot | str, version: str = "2.0.0") -> RobotAddress:
     name = robot if isinstance(robot, str) else robot.serial_number
-    return RobotAddress("uagv", "RobotCompany", name, "2.0.0")
+    return RobotAddress("uagv", "RobotCompany", name, version)
 
 
 def topic(robot: Robot | str, kind: str) -> str:
@@ -36,9 +36,12 @@ def topic(robot: Robot | str, kind: str) -> str:
     return f"uagv/v2/RobotCompany/{name}/{kind}"
 
 
-def wire(robot: Robot | str, content: Content, *, header_id: int = 1, at: float = 0.0) -> bytes:
-    """`content` as `robot` sends it, stamped `at` seconds after T0."""
-    return encode(content, header_for(address(robot), header_id=header_id, at=T0 + timedelta(seconds=at)))
+def wire(
+    robot: Robot | str, content: Content, *, header_id: int = 1, at: float = 0.0, version: str = "2.0.0"
+) -> bytes:
+    """`content` as `robot` sends it (speaking `version`), stamped `at` seconds after T0."""
+    header = header_for(address(robot, version), header_id=header_id, at=T0 + timedelta(seconds=at))
+    return encode(content, header)
 
 
 def state_message(
