@@ -89,7 +89,9 @@ class SimulatedRobot:
         )
         order = CurrentOrder(outbox)
         drain, charge_rate = config.battery_rates(settings)
-        battery = Battery(charge=config.battery, drain_per_metre=drain, charge_rate=charge_rate)
+        battery = Battery(
+            charge=config.battery_at_start(settings), drain_per_metre=drain, charge_rate=charge_rate
+        )
         self._outbox = outbox
         self._battery = battery
         self._errors = errors
@@ -311,4 +313,3 @@ class SimulatedRobot:
         return AgvPosition(
             x=pose.x, y=pose.y, theta=pose.theta, map_id=self._maps.map_id, position_initialized=True
         )
-

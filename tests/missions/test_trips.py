@@ -23,13 +23,11 @@ from robots.models import InstantAction, Robot
 from robots.services import robot_delete
 from robots.status import robot_check_heartbeats, robots_came_online
 from stations.models import Station
-from tests.factories import TEST_ACTOR, RobotFactory, StationFactory
+from tests.factories import CAN_CHARGE, TEST_ACTOR, RobotFactory, StationFactory
 from tests.missions.test_robot_step import put_state
 from vda5050.models import ActionType
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-CAN_CHARGE = {"protocolFeatures": {"agvActions": [{"actionType": ActionType.START_CHARGING.value}]}}
 
 
 def robot(name: str, *, x: float = 0.0, level: float = 80.0, **fields: Any) -> Robot:
