@@ -25,6 +25,8 @@ class Topic(StrEnum):
     VISUALIZATION = "visualization"
     CONNECTION = "connection"
     FACTSHEET = "factsheet"
+    ZONE_SET = "zoneSet"  # 3.0, fleet control -> robot
+    RESPONSES = "responses"  # 3.0, fleet control -> robot: answers to zone and edge requests
 
 
 @dataclass(frozen=True)
