@@ -13,6 +13,7 @@ from vda5050.codec import ACTIONS_KEY
 from vda5050.models import (
     InstantActionsContent,
     OrderContent,
+    ZoneSetContent,
 )
 from vda5050.topics import Topic
 
@@ -94,14 +95,17 @@ class ActionRecord:
 
 @dataclass(frozen=True)
 class Outgoing:
-    """A message to publish to the robot: an order or instant actions (header stamped when sent)."""
+    """A message to publish to the robot: an order, instant actions or (3.0) a zone set (header stamped
+    when sent)."""
 
-    content: OrderContent | InstantActionsContent
+    content: OrderContent | InstantActionsContent | ZoneSetContent
 
     @property
     def topic(self) -> Topic:
         """The topic it goes out on; each topic numbers its messages (headerId) on its own."""
-        return Topic.ORDER if isinstance(self.content, OrderContent) else Topic.INSTANT_ACTIONS
+        if isinstance(self.content, OrderContent):
+            return Topic.ORDER
+        return Topic.ZONE_SET if isinstance(self.content, ZoneSetContent) else Topic.INSTANT_ACTIONS
 
 
 @dataclass

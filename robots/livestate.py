@@ -240,7 +240,7 @@ def step_marker_key(name: str) -> str:
 
 
 # The topics on which the server sends robots messages (vda5050.topics.Topic values).
-PUBLISHED_TOPICS = ("order", "instantActions")
+PUBLISHED_TOPICS = ("order", "instantActions", "zoneSet")
 
 
 def _published_field(topic: str) -> str:
