@@ -4,28 +4,32 @@ until fleet control grants them on `responses`. Every message checked against it
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
+
 import pytest
 
 from simulator.factsheet import factsheet_content
 from simulator.zones import inside, segment_enters
 from tests.simulator.conftest import RobotHarness, route
-from vda5050.codec import encode
+from vda5050.codec import encode, header_for
 from vda5050.models import (
     Action,
     ActionStatus,
     ActionType,
+    InstantActionsContent,
     MapStatus,
     Response,
     ResponsesContent,
     StateContent,
 )
 from vda5050.orders import instant_action
-from vda5050.topics import Topic
+from vda5050.topics import Topic, topic_for
 from vda5050.zones import ZONE_SET_ID, zone_set_message
 
 SPEC_3 = "carter30,0,0,0,map,0,20,RobotCompany,carter30,CARRIER,3.0.0"
 # A narrow aisle across the robot's way along y = 0, from x = 2 to x = 3.
 AISLE = [{"x": 2.0, "y": -1.0}, {"x": 3.0, "y": -1.0}, {"x": 3.0, "y": 1.0}, {"x": 2.0, "y": 1.0}]
+RELEASE = {"zone_id": "aisle", "zone_type": "RELEASE", "vertices": AISLE, "release_loss_behavior": "STOP"}
 
 
 def send_zone_set(h: RobotHarness, zone_set_id: str = "floor1-v1", map_id: str = "map") -> None:
@@ -34,7 +38,7 @@ def send_zone_set(h: RobotHarness, zone_set_id: str = "floor1-v1", map_id: str =
         map_id=map_id,
         description="",
         zones=[
-            {"zone_id": "aisle", "zone_type": "RELEASE", "vertices": AISLE, "release_loss_behavior": "STOP"},
+            RELEASE,
             {"zone_id": "slow", "zone_type": "SPEED_LIMIT", "vertices": AISLE, "maximum_speed": 0.5},
         ],
     )
@@ -233,3 +237,47 @@ def test_inside(point: tuple[float, float], expected: bool) -> None:
 )
 def test_segment_enters(start: tuple[float, float], end: tuple[float, float], expected: bool) -> None:
     assert segment_enters(start, end, SQUARE) is expected
+
+
+# --- over the real broker, with a fake fleet control ------------------------------------------------------
+
+
+def test_over_mqtt_a_fake_fleet_control_distributes_a_zone_set_and_grants_the_robot_its_zone(
+    start_simulator, probe
+) -> None:
+    simulator = start_simulator("--robots", SPEC_3, "--speed", "10", "--tick_period", "0.05")
+    address = simulator.address("carter30", version="3.0.0")
+    headers = iter(range(1000))
+
+    def publish(topic: Topic, content) -> None:
+        header = header_for(address, header_id=next(headers), at=datetime.now(UTC))
+        probe.publish(topic_for(address, topic), encode(content, header))
+
+    def state_where(condition) -> dict:
+        return probe.wait_for(lambda r: r.kind == Topic.STATE and condition(r.body), "a state").body
+
+    state_where(lambda s: s["zoneSets"] == [])
+    publish(Topic.ZONE_SET, zone_set_message(zone_set_id="z1", map_id="map", description="", zones=[RELEASE]))
+    state_where(lambda s: s["zoneSets"] == [{"zoneSetId": "z1", "mapId": "map", "zoneSetStatus": "DISABLED"}])
+    publish(Topic.INSTANT_ACTIONS, InstantActionsContent(actions=[zone_action("enableZoneSet", "e1", "z1")]))
+    state_where(lambda s: s["zoneSets"] == [{"zoneSetId": "z1", "mapId": "map", "zoneSetStatus": "ENABLED"}])
+
+    publish(Topic.ORDER, route((1.0, 0.0), (5.0, 0.0)))
+    waiting = state_where(lambda s: s["zoneRequests"] and not s["driving"])
+    [request] = waiting["zoneRequests"]
+    assert (request["zoneId"], request["requestType"], request["requestStatus"]) == (
+        "aisle",
+        "ACCESS",
+        "REQUESTED",
+    )
+    assert waiting["mobileRobotPosition"]["x"] == pytest.approx(1.0)
+
+    publish(
+        Topic.RESPONSES,
+        ResponsesContent(responses=[Response(request_id=request["requestId"], grant_type="GRANTED")]),
+    )
+
+    done = state_where(
+        lambda s: not s["nodeStates"] and not s["driving"] and s["mobileRobotPosition"]["x"] > 4.9
+    )
+    assert done["zoneRequests"] == []
