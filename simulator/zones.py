@@ -25,6 +25,7 @@ from simulator.outbox import Outbox
 from vda5050.codec import parse_responses, parse_zone_set
 from vda5050.errors import ProtocolError
 from vda5050.models import ActionType, MapStatus, Request, ZoneSetDefinition, ZoneSetState
+from vda5050.polygons import Point, Polygon, contains, segment_touches
 from vda5050.topics import Topic
 from vda5050.zones import ZONE_SET_ID, GrantType, ZoneType
 
@@ -37,10 +38,6 @@ class RequestStatus(StrEnum):
     REQUESTED = "REQUESTED"
     GRANTED = "GRANTED"
     REVOKED = "REVOKED"
-
-
-Point = tuple[float, float]
-Polygon = list[Point]
 
 
 @dataclass
@@ -152,7 +149,7 @@ class RobotZones:
         each that is not."""
         may = True
         for zone_set_id, zone_id, polygon in self._release_zones(map_id):
-            if inside(here, polygon) or not segment_enters(here, to, polygon):
+            if contains(polygon, here) or not segment_touches(polygon, here, to):
                 continue
             request = self._request_for(zone_set_id, zone_id, polygon)
             may = may and request.status == RequestStatus.GRANTED
@@ -163,7 +160,7 @@ class RobotZones:
         has no route left, those it never entered."""
         kept = {}
         for request_id, request in self._requests.items():
-            within = inside(here, request.polygon)
+            within = contains(request.polygon, here)
             request.entered = request.entered or within
             if (request.entered and not within) or (not route_left and not request.entered):
                 self._outbox.state_changed = True
@@ -202,48 +199,3 @@ def answered(request: ZoneRequest, grant_type: str) -> str:
             return RequestStatus.REQUESTED  # not yet in: wait for a new grant
         case _:  # QUEUED, REJECTED: as it was (waiting)
             return request.status
-
-
-# --- geometry ----------------------------------------------------------------------------------------
-
-
-def inside(point: Point, polygon: Polygon) -> bool:
-    """Whether `point` lies inside `polygon` (even-odd rule; a point on an edge counts as inside)."""
-    x, y = point
-    result = False
-    for (x1, y1), (x2, y2) in zip(polygon, polygon[1:] + polygon[:1], strict=True):
-        if _on_segment(point, (x1, y1), (x2, y2)):
-            return True
-        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
-            result = not result
-    return result
-
-
-def segment_enters(start: Point, end: Point, polygon: Polygon) -> bool:
-    """Whether the straight way from `start` to `end` touches `polygon` (ends in it or crosses an edge)."""
-    if inside(end, polygon) or inside(start, polygon):
-        return True
-    edges = zip(polygon, polygon[1:] + polygon[:1], strict=True)
-    return any(_segments_cross(start, end, a, b) for a, b in edges)
-
-
-def _cross(o: Point, a: Point, b: Point) -> float:
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-
-def _on_segment(p: Point, a: Point, b: Point) -> bool:
-    return (
-        _cross(a, b, p) == 0
-        and min(a[0], b[0]) <= p[0] <= max(a[0], b[0])
-        and min(a[1], b[1]) <= p[1] <= max(a[1], b[1])
-    )
-
-
-def _segments_cross(p1: Point, p2: Point, q1: Point, q2: Point) -> bool:
-    d1, d2 = _cross(q1, q2, p1), _cross(q1, q2, p2)
-    d3, d4 = _cross(p1, p2, q1), _cross(p1, p2, q2)
-    if ((d1 > 0) != (d2 > 0)) and ((d3 > 0) != (d4 > 0)) and 0 not in (d1, d2, d3, d4):
-        return True
-    return any(
-        _on_segment(point, a, b) for point, a, b in ((p1, q1, q2), (p2, q1, q2), (q1, p1, p2), (q2, p1, p2))
-    )

@@ -9,7 +9,6 @@ from datetime import UTC, datetime
 import pytest
 
 from simulator.factsheet import factsheet_content
-from simulator.zones import inside, segment_enters
 from tests.simulator.conftest import RobotHarness, route
 from vda5050.codec import encode, header_for
 from vda5050.models import (
@@ -210,33 +209,6 @@ def test_a_request_never_entered_is_dropped_when_the_order_is_cancelled(enabled:
     h.tick()
 
     assert h.state.zone_requests == []
-
-
-# --- geometry --------------------------------------------------------------------------------------------
-
-SQUARE = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
-
-
-@pytest.mark.parametrize(
-    ("point", "expected"), [((1.0, 1.0), True), ((2.0, 1.0), True), ((3.0, 1.0), False), ((-0.1, 0.0), False)]
-)
-def test_inside(point: tuple[float, float], expected: bool) -> None:
-    assert inside(point, SQUARE) is expected
-
-
-@pytest.mark.parametrize(
-    ("start", "end", "expected"),
-    [
-        ((-1.0, 1.0), (3.0, 1.0), True),  # straight through
-        ((-1.0, 1.0), (1.0, 1.0), True),  # ends inside
-        ((-1.0, 3.0), (3.0, 3.0), False),  # passes above
-        ((-1.0, -1.0), (3.0, -1.0), False),  # passes below
-        ((-1.0, 2.0), (3.0, 2.0), True),  # along an edge
-        ((3.0, -1.0), (-1.0, 3.0), True),  # across a corner's diagonal
-    ],
-)
-def test_segment_enters(start: tuple[float, float], end: tuple[float, float], expected: bool) -> None:
-    assert segment_enters(start, end, SQUARE) is expected
 
 
 # --- over the real broker, with a fake fleet control ------------------------------------------------------
