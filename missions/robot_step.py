@@ -31,6 +31,7 @@ from dispatch.records import (
     ZoneReach,
 )
 from dispatch.step import step
+from dispatch.zone_sets import ZoneSetMoves, plan_zone_sets
 from kit.db import json_column, jsonb, pipelined_transaction
 from kit.wake import request_assignment, request_zones_plan
 from missions.choices import MissionState
@@ -57,9 +58,11 @@ from vda5050.codec import encode, header_for, parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
 from vda5050.topics import RobotAddress, Topic
+from vda5050.versions import V3_0
 from vda5050.zones import ZoneType
 from zones.models import ZoneReach as ZoneReachRow
 from zones.models import ZoneSet
+from zones.selectors import zone_set_messages
 
 logger = logging.getLogger(__name__)
 
@@ -75,11 +78,20 @@ ZONED_MAPS_SQL = f"""
     SELECT s.map_id FROM {ZoneSet._meta.db_table} s
     WHERE s.enabled AND jsonb_path_exists(s.zones, '$[*] ? (@.zone_type == "{ZoneType.RELEASE}")')
 """
+# The fleet's enabled zone set of each map (mapId -> zoneSetId) for a robot that takes zone sets; NULL for
+# the others, which read nothing more.
+ZONE_SETS_ENABLED_SQL = f"""
+    CASE WHEN r.protocol_version = '{V3_0}' AND r.supported_zones <> '[]'::jsonb THEN (
+        SELECT COALESCE(jsonb_object_agg(z.map_id, z.name), '{{}}'::jsonb)
+        FROM {ZoneSet._meta.db_table} z WHERE z.enabled
+    ) END
+"""
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
         r.instant_actions_key_source = '{SettingSource.OPERATOR}',
         NOT r.compatibility_rules @> '[{{"rule": "{compat.Rule.ORDER_UPDATE_NOT_EXECUTED}"}}]'::jsonb,
-        r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
+        r.next_order_header_id, r.next_instant_actions_header_id, r.next_zone_set_header_id, r.outbox,
+        {ZONE_SETS_ENABLED_SQL}, r.zone_set_moves, r.zone_set_moved_at,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
         {robot_charge_threshold_sql("r")},
         EXISTS (
@@ -216,7 +228,9 @@ class _RobotWire:
 
 OUTBOX_SQL = f"""
     UPDATE {Robot._meta.db_table}
-    SET next_order_header_id = %s, next_instant_actions_header_id = %s, outbox = %s WHERE name = %s
+    SET next_order_header_id = %s, next_instant_actions_header_id = %s, next_zone_set_header_id = %s,
+        outbox = %s
+    WHERE name = %s
 """
 
 
@@ -262,6 +276,7 @@ def _wire_messages(
             [
                 wire.next_header_ids[Topic.ORDER],
                 wire.next_header_ids[Topic.INSTANT_ACTIONS],
+                wire.next_header_ids[Topic.ZONE_SET],
                 jsonb((unsent + new)[-OUTBOX_LIMIT:]),
                 name,
             ],
@@ -328,7 +343,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         routes_ahead,
         next_order_header_id,
         next_instant_actions_header_id,
+        next_zone_set_header_id,
         outbox,
+        zone_sets_enabled,
+        zone_set_moves,
+        zone_set_moved_at,
         *address,
         charge_threshold,
         has_actions,
@@ -349,6 +368,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         {
             Topic.ORDER: next_order_header_id,
             Topic.INSTANT_ACTIONS: next_instant_actions_header_id,
+            Topic.ZONE_SET: next_zone_set_header_id,
             Topic.RESPONSES: next_responses_header_id or 0,
         },
         orjson.loads(outbox) if outbox is not None else [],
@@ -367,6 +387,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     elif zoned_maps and _may_be_on(state, zoned_maps):
         zone_reach = ZoneReach()  # not seen by the zone plan yet: a new order releases its start alone
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
+    if zone_sets_enabled is not None:
+        moves = ZoneSetMoves(json_column(zone_set_moves), zone_set_moved_at)
+        actions += _distribute_zone_sets(
+            name, json_column(zone_sets_enabled), moves, state, online, actions, now, outcome
+        )
     view = RobotView(
         name=name,
         lifecycle=lifecycle,
@@ -438,6 +463,43 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             state=view.state, state_since=changed_at, updated_at=changed_at
         )
     return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
+
+
+ZONE_SET_MOVES_SQL = f"""
+    UPDATE {Robot._meta.db_table} SET zone_set_moves = %s, zone_set_moved_at = %s WHERE name = %s
+"""
+
+
+def _distribute_zone_sets(
+    name: str,
+    enabled: dict[str, str],
+    moves: ZoneSetMoves,
+    state: State | None,
+    online: bool,
+    actions: list[ActionRecord],
+    now: datetime,
+    outcome: StepOutcome,
+) -> list[ActionRecord]:
+    """The robot's next zone set moves (`dispatch.zone_sets`): its `zoneSet` messages go on `outcome`, its
+    new instant actions are stored and returned (the step sends them with the others), and the moves are
+    remembered if they changed."""
+    plan = plan_zone_sets(
+        robot=name,
+        enabled=enabled,
+        moves=moves,
+        state=state,
+        online=online,
+        actions=actions,
+        now=now,
+        resend=dispatch_settings().instant_action_resend,
+    )
+    if plan.send:
+        outcome.messages.extend(Outgoing(message) for message in zone_set_messages(names=plan.send))
+    _store_actions(name, [], plan.actions)
+    if plan.moves is not moves:
+        with connection.cursor() as cursor:
+            cursor.execute(ZONE_SET_MOVES_SQL, [jsonb(dict(plan.moves.made)), plan.moves.at, name])
+    return plan.actions
 
 
 def _release(robot: str, mission: str, reason: str) -> None:

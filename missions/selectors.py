@@ -34,6 +34,8 @@ from robots.models import InstantAction, Robot
 from vda5050 import maps
 from vda5050.models import MapStatus
 from vda5050.state import MODES_WITHOUT_ORDERS
+from vda5050.versions import V3_0
+from zones.models import ZoneSet
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -65,7 +67,8 @@ def notify_params(*, mission: str, node: str) -> dict[str, Any] | None:
 
 
 def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
-    """Robots with something that waits on time: a timeout, a deadline, an unacknowledged message."""
+    """Robots with something that waits on time: a timeout, a deadline, an unacknowledged message, zone
+    sets to distribute."""
     now = now or timezone.now()
     order_resend = now - timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS)
     action_resend = now - timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS)
@@ -94,7 +97,36 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     names.update(pending.values_list("robot", flat=True))
     names.update(unnoticed.values_list("robot", flat=True))
     names.update(actions.values_list("robot_id", flat=True))
+    with connection.cursor() as cursor:
+        cursor.execute(ZONE_SETS_DUE_SQL, [action_resend])
+        names.update(name for (name,) in cursor.fetchall())
     return sorted(names)
+
+
+# Online robots that take zone sets, whose reported zone sets are not yet the fleet's (one of their maps'
+# enabled sets not ENABLED, or a set held that the fleet has not enabled), and whose last zone set move
+# (`dispatch.zone_sets`) is older than the instant actions' resend period, or was never made.
+ZONE_SETS_DUE_SQL = f"""
+    SELECT r.name FROM {Robot._meta.db_table} r
+    WHERE r.online AND r.protocol_version = '{V3_0}' AND r.supported_zones <> '[]'::jsonb
+      AND (r.zone_set_moved_at IS NULL OR r.zone_set_moved_at <= %s)
+      AND (
+        EXISTS (
+            SELECT 1 FROM {ZoneSet._meta.db_table} z
+            WHERE z.enabled
+              AND (z.map_id = r.pose_map_id
+                   OR r.maps @> jsonb_build_array(jsonb_build_object('map_id', z.map_id)))
+              AND NOT r.zone_sets @> jsonb_build_array(
+                  jsonb_build_object('zone_set_id', z.name, 'zone_set_status', '{MapStatus.ENABLED}'))
+        )
+        OR EXISTS (
+            SELECT 1 FROM jsonb_array_elements(r.zone_sets) held
+            WHERE NOT EXISTS (
+                SELECT 1 FROM {ZoneSet._meta.db_table} z WHERE z.enabled AND z.name = held->>'zone_set_id'
+            )
+        )
+      )
+"""
 
 
 def robots_stalled(*, now: datetime | None = None) -> list[str]:

@@ -11,11 +11,11 @@ from typing import Any
 import pytest
 from rest_framework.test import APIClient
 
-from dispatch.polygons import Point, contains
 from dispatch.step import ZONE_WAITING
 from tests.e2e.conftest import Simulator
 from tests.e2e.helpers import Tap, create_robot, get, post_mission, route, tapped, wait_mission, wait_robot
 from tests.waiting import wait_for
+from vda5050.polygons import Point, contains
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 

@@ -237,6 +237,15 @@ def test_a_leaf_resumed_after_its_robot_restarted_is_not_reached_twice():
     assert not checks.check_leaves([M1], final, messages, [], restarts=[Window(6, 7, "simulator")]).ok
 
 
+def test_a_leaf_ordered_while_its_robot_was_down_then_again_is_resumed_not_reached_twice():
+    """The first order went out while the simulator was being restarted: the fresh robot never had it."""
+    messages = [order(2, "r1", "m1-n0-r0", 0), order(5, "r1", "m1-n0-r1", 1), order(8, "r1", "m1-n1-r0", 2)]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+
+    assert checks.check_leaves([M1], final, messages, [], restarts=[Window(1, 3, "simulator")]).ok
+    assert not checks.check_leaves([M1], final, messages, [], restarts=[Window(0.5, 1.5, "simulator")]).ok
+
+
 def test_a_leaf_resumed_after_its_robot_restarted_may_follow_the_next_leaf_sent_ahead():
     messages = [
         order(1, "r1", "m1-n0-r0", 0),

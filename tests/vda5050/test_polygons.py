@@ -5,7 +5,7 @@ import random
 
 import pytest
 
-from dispatch.polygons import contains, polygon_problem, segment_touches, segments_intersect, signed_area
+from vda5050.polygons import contains, polygon_problem, segment_touches, segments_intersect, signed_area
 
 SQUARE = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
 # An L: the notch (1..2, 1..2) is outside.
