@@ -3,7 +3,11 @@ the API brings it to the 3.0 robot on its map (the zoneSet message, then enableZ
 `zoneSets`, shown in GET /robot/{name}; disabling it deletes it from the robot. A 2.1 robot on the same map
 gets nothing."""
 
+from collections.abc import Callable
+from typing import Any
+
 import pytest
+from rest_framework.test import APIClient
 
 from tests.e2e.helpers import create_robot, get
 from tests.waiting import wait_for
@@ -18,13 +22,15 @@ AISLE = {
 }
 
 
-def post(api, path: str, body: dict | None = None) -> dict:
+def post(api: APIClient, path: str, body: dict | None = None) -> dict:
     response = api.post(path, body or {}, format="json")
     assert response.status_code == 200, response.content
     return response.json()
 
 
-def test_an_enabled_zone_set_reaches_the_3_0_robot_and_a_disabled_one_leaves_it(api, simulator, unique) -> None:
+def test_an_enabled_zone_set_reaches_the_3_0_robot_and_a_disabled_one_leaves_it(
+    api: APIClient, simulator: Callable[..., Any], unique: Callable[[str], str]
+) -> None:
     robot, old = unique("zones30"), unique("zones21")
     simulator(
         f"{robot},0,0,0,map,0,50,RobotCompany,{robot},CARRIER,3.0.0",
