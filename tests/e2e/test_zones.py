@@ -149,4 +149,5 @@ def test_a_robot_killed_inside_a_zone_frees_it_after_its_heartbeat_timeout(api, 
 
     assert wait_mission(api, through)["status"]["state"] == "COMPLETED"
     assert get(api, "robot", stuck)["status"]["online"] is False
-    assert get(api, "robot", passing)["status"]["zone_access"]["held"] == []
+    # The plan lets the zone go on its next run after the robot left it, a moment after the mission ended.
+    wait_robot(api, passing, zone_access={"held": [], "waiting": []})
