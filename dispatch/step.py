@@ -166,11 +166,7 @@ def _reach_further(
     if (
         through <= orders.last_base_node(order).sequence_id
         or not mission.order_accepted
-        or mission.needs_canceled
-        or state is None
-        or not robot.online
-        or not vda_state.may_receive_orders(state)
-        or pending_action(result, ActionType.CANCEL_ORDER) is not None
+        or not _may_update(result, robot, state, mission)
     ):
         return
     update = orders.release_update(order, through)
@@ -471,6 +467,18 @@ def _follow_order(
         and faults.watch_progress(robot, state, mission, now, settings.order_stall.total_seconds())
     ):
         _end_stalled(result, state, mission, now, settings)
+
+
+def _may_update(result: StepResult, robot: RobotView, state: State | None, mission: MissionRecord) -> bool:
+    """An order update may go out now: the mission is not being canceled, no cancelOrder is pending (3.0:
+    no order update after cancelOrder), and the robot is online and may take orders."""
+    return (
+        not mission.needs_canceled
+        and state is not None
+        and robot.online
+        and vda_state.may_receive_orders(state)
+        and pending_action(result, ActionType.CANCEL_ORDER) is None
+    )
 
 
 def _resent(sent: SentOrder, state: State) -> OrderContent:
@@ -860,11 +868,7 @@ def _extend(
         or not robot.routes_ahead
         or robot.zone_reach is not None  # the zone plan has not seen the next leaf's route
         or mission.order is None
-        or mission.needs_canceled
-        or state is None
-        or not robot.online
-        or not vda_state.may_receive_orders(state)
-        or pending_action(result, ActionType.CANCEL_ORDER) is not None
+        or not _may_update(result, robot, state, mission)
     ):
         return
     sent = sent_order(mission.order)

@@ -31,7 +31,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from vda5050.models import Request
-from vda5050.polygons import Point, contains, segment_touches
+from vda5050.polygons import Point, box_touches, contains
 from vda5050.zones import GrantType
 
 ACCESS = "ACCESS"  # the zone request type this core answers (REPLANNING is COORDINATED_REPLANNING's)
@@ -291,12 +291,14 @@ def zones_at(point: RoutePoint, zones: Iterable[Zone]) -> Iterable[ZoneKey]:
 
 
 def zones_on(start: RoutePoint | None, end: RoutePoint, zones: Iterable[Zone]) -> Iterable[ZoneKey]:
-    """The zones a robot touches going straight from `start` to `end` (only `end`'s, without a start or
-    across maps)."""
+    """The zones a robot may touch going from `start` to `end` (only `end`'s, without a start or across
+    maps). An edge without a trajectory leaves the path to the robot: straight, or L-shaped as Isaac's
+    simulator drives; so the zones of the box the two nodes span count, not only those of the straight
+    line (a long diagonal edge beside a zone waits for it too)."""
     if start is None or start.map_id != end.map_id:
         return zones_at(end, zones)
     return (
         zone.key
         for zone in zones
-        if zone.map_id == end.map_id and segment_touches(zone.vertices, start.point, end.point)
+        if zone.map_id == end.map_id and box_touches(zone.vertices, start.point, end.point)
     )

@@ -66,6 +66,14 @@ def notify_params(*, mission: str, node: str) -> dict[str, Any] | None:
     return None
 
 
+def orders_held_back() -> bool:
+    """A running mission's order announces nodes it has not released: a zone held them back (the only
+    horizon the dispatcher sends, `missions.zone_plan`)."""
+    return Mission.objects.filter(
+        state=MissionState.RUNNING, order__contains={"nodes": [{"released": False}]}
+    ).exists()
+
+
 def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     """Robots with something that waits on time: a timeout, a deadline, an unacknowledged message, zone
     sets to distribute."""

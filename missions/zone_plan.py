@@ -2,7 +2,8 @@
 
 A run takes the plan's advisory lock (runs take turns, whatever number of workers run one at once or are
 killed mid-run), reads the maps' enabled RELEASE zones, every robot with its running mission's order and
-progress and its zone reach, the grants, and the 3.0 robots' zoneRequests from their latest states; decides;
+progress and its zone reach, the grants, and the robots' positions (the 3.0 ones' zoneRequests too) from
+their latest states; decides;
 and writes in the same transaction the grants, each robot's reach (how far its order's base may go, which
 zones it waits for, the answers to its requests) and the zones each robot holds and waits for in its status.
 The robots whose reach changed, and those whose order's base is still behind their reach, get a step, which
@@ -16,10 +17,11 @@ RELEASE zone, the run removes every grant and reach (the steps then release what
 """
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from typing import Any
 
+import orjson
 from django.db import connection, transaction
 from django.db.backends.utils import CursorWrapper
 from django.utils import timezone
@@ -136,7 +138,7 @@ def zones_plan_run() -> ZoneDecision | None:
             return None
         cursor.execute(GRANTS_SQL)
         grants = cursor.fetchall()
-        rejected = _with_requests(robots, enabled)
+        rejected = _with_latest_states(robots, enabled)
         holders: dict[ZoneKey, list[str]] = {}
         for _, map_id, zone_id, robot, _ in grants:
             holders.setdefault((map_id, zone_id), []).append(robot)
@@ -230,23 +232,35 @@ def _robot(
     )
 
 
-def _with_requests(robots: list[_Robot], enabled: dict[str, str]) -> dict[str, tuple[str, ...]]:
-    """Give the 3.0 robots that count their zoneRequests from their latest states; the requests to answer
-    REJECTED at once, per robot (`dispatch.zones.zone_requests`). One round trip to Redis."""
-    asking = [robot for robot in robots if robot.is_3 and robot.counts and robot.route is not None]
-    payloads = livestate.states([robot.name for robot in asking])
+def _with_latest_states(robots: list[_Robot], enabled: dict[str, str]) -> dict[str, tuple[str, ...]]:
+    """Give the robots that count their position from their latest states, and the 3.0 ones their
+    zoneRequests; the requests to answer REJECTED at once, per robot (`dispatch.zones.zone_requests`). One
+    round trip to Redis.
+
+    The position is the latest state's, not the robot row's: the row's (the bridge's status flush) may
+    be older than the progress the step wrote from a later state, and a robot placed back on its route's
+    previous edge could seem to touch no zone where it drives now. The latest state is at least as new as
+    the progress."""
+    counting = [robot for robot in robots if robot.counts and robot.route is not None]
+    payloads = livestate.states([robot.name for robot in counting])
     rejected: dict[str, tuple[str, ...]] = {}
-    for robot in asking:
+    for robot in counting:
         payload = payloads[robot.name]
+        assert robot.route is not None
         if payload is None:
+            continue
+        position = orjson.loads(payload).get("agvPosition")
+        if isinstance(position, dict):
+            where = RoutePoint(float(position["x"]), float(position["y"]), str(position["mapId"]))
+            robot.route = replace(robot.route, position=where)
+        if not robot.is_3:
             continue
         try:
             requests = parse_state(payload).zone_requests or []
         except ProtocolError:
             continue  # the bridge only stores states it could parse
         taken, rejected[robot.name] = zone_requests(requests, enabled)
-        assert robot.route is not None
-        robot.route = RobotRoute(**{**robot.route.__dict__, "requests": taken})
+        robot.route = replace(robot.route, requests=taken)
     return rejected
 
 
@@ -366,10 +380,18 @@ def _zone_access_update(cursor: CursorWrapper, robots: list[_Robot], access: dic
 
 def _let_go(cursor: CursorWrapper, robots: list[_Robot]) -> None:
     """No enabled RELEASE zone: no grants, no reaches (their robots' steps release what orders held back),
-    nothing held or waited for in the robots' status."""
+    nothing held or waited for in the robots' status. The robots whose order is still held back are
+    stepped at every run (beat runs it while one is, `missions.selectors.orders_held_back`), as `_behind`."""
     cursor.execute(f"DELETE FROM {_GRANTS}")
     reached = [robot.name for robot in robots if robot.stored is not None]
     if reached:
         cursor.execute(REACH_DELETE_SQL, [reached])
-        request_steps(reached)
+    held_back = [
+        robot.name
+        for robot in robots
+        if robot.counts and robot.route is not None and robot.route.released < len(robot.route.route)
+    ]
+    to_step = list(dict.fromkeys([*reached, *held_back]))
+    if to_step:
+        request_steps(to_step)
     _zone_access_update(cursor, robots, {robot.name: {} for robot in robots})

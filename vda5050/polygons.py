@@ -68,6 +68,19 @@ def segment_touches(polygon: Polygon, start: Point, end: Point) -> bool:
     return any(segments_intersect(start, end, a, b) for a, b in _edges(polygon))
 
 
+def box_touches(polygon: Polygon, corner: Point, opposite: Point) -> bool:
+    """Whether the axis-aligned box with opposite corners `corner` and `opposite` (flat: a segment or a
+    point) shares a point with `polygon`: whatever path a robot takes between two nodes, straight or
+    L-shaped (along X, then Y, as Isaac's reference simulator drives), it stays in that box as long as it
+    never drives away from the next node in X or Y."""
+    (x0, y0), (x1, y1) = corner, opposite
+    low_x, high_x, low_y, high_y = min(x0, x1), max(x0, x1), min(y0, y1), max(y0, y1)
+    if any(low_x <= x <= high_x and low_y <= y <= high_y for x, y in polygon):
+        return True
+    box = [(low_x, low_y), (high_x, low_y), (high_x, high_y), (low_x, high_y)]
+    return any(segment_touches(polygon, a, b) for a, b in _edges(box))
+
+
 def segments_intersect(p1: Point, p2: Point, q1: Point, q2: Point) -> bool:
     """Whether segments p1-p2 and q1-q2 share a point (touching counts)."""
     d1, d2 = _orientation(q1, q2, p1), _orientation(q1, q2, p2)

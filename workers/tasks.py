@@ -104,9 +104,10 @@ def plan_zones() -> None:
 
 @shared_task(name="fleet.plan_zones_while_enabled", ignore_result=True)
 def plan_zones_while_enabled() -> None:
-    """Beat's clock for the zone plan while a map has an enabled zone set: robots fall silent, leave zones
-    and report positions without a step asking for a run."""
-    if zone_sets_enabled():
+    """Beat's clock for the zone plan while a map has an enabled zone set (robots fall silent, leave zones
+    and report positions without a step asking for a run), or an order is still held back by a zone (its
+    set disabled: the run steps its robot until the step has released it)."""
+    if zone_sets_enabled() or mission_selectors.orders_held_back():
         queue_zones_plan()
 
 

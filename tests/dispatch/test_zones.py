@@ -231,6 +231,8 @@ def test_geometry_of_routes_nodes_and_edges():
     assert list(zones_on(at(0.0, 5.0), at(6.0, 5.0), [AISLE])) == []
     assert list(zones_on(None, at(3.0, 0.0), [AISLE])) == [AISLE_KEY]
     assert list(zones_on(at(3.0, 0.0, "yard"), at(0.0, 0.0), [AISLE])) == []  # a map change: only the end
+    # The straight line passes above the aisle; the L along X, then Y (Isaac's simulator) goes through it.
+    assert list(zones_on(at(0.0, 0.9), at(5.0, 5.0), [AISLE])) == [AISLE_KEY]
 
 
 # --- driving: robots follow their horizons while the core decides each tick ------------------------------

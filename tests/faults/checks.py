@@ -20,6 +20,8 @@ from typing import Any
 
 import orjson
 
+from vda5050.polygons import Polygon, contains
+
 TERMINAL = frozenset({"COMPLETED", "FAILED", "CANCELED"})
 FINAL_ACTION_STATUSES = frozenset({"FINISHED", "FAILED"})
 ORDER_ID = re.compile(r"(?P<mission>.+)-n(?P<node>\d+)-r(?P<attempt>\d+)")
@@ -693,6 +695,53 @@ def check_station_capacity(samples: Sequence[StationSample], origin: float | Non
         if twice:
             result.problems.append(f"robots {twice} held two stations at once at {_at(t, origin)}")
     result.notes.append(f"{len(by_time)} snapshots of {len({sample.name for sample in samples})} stations")
+    return result
+
+
+def check_zone_capacity(
+    messages: Sequence[WireMessage],
+    zones: Mapping[str, Polygon],
+    windows: Sequence[Window],
+    origin: float | None = None,
+) -> CheckResult:
+    """Never two robots inside a capacity-1 RELEASE zone at once, from every recorded state's position
+    replayed in arrival order (each robot where its latest state put it). A robot's stay in a zone that
+    overlaps a window is left out: its simulator restarted (offline, it held nothing, and another robot
+    may be let in before it reports again from inside), or the observer missed its states."""
+    result = CheckResult("never two robots inside a capacity-1 zone")
+    stays: dict[str, dict[str, float]] = {zone: {} for zone in zones}  # zone -> robot -> inside since
+    reported: set[tuple[str, tuple[str, ...]]] = set()
+    excused_stays: set[tuple[str, str, float]] = set()
+    entered: set[tuple[str, str, float]] = set()
+    states = 0
+    for message in messages:
+        position = (message.data or {}).get("agvPosition") if message.kind == "state" else None
+        if not isinstance(position, dict):
+            continue
+        states += 1
+        for zone, polygon in zones.items():
+            inside = stays[zone]
+            if contains(polygon, (position["x"], position["y"])):
+                inside.setdefault(message.serial, message.t)
+            else:
+                inside.pop(message.serial, None)
+            counted = []
+            entered.update((zone, robot, since) for robot, since in inside.items())
+            for robot, since in inside.items():
+                if excused(windows, since, message.t) is None:
+                    counted.append(robot)
+                else:
+                    excused_stays.add((zone, robot, since))
+            together = (zone, tuple(sorted(counted)))
+            if len(counted) > 1 and together not in reported:
+                reported.add(together)
+                result.problems.append(
+                    f"robots {', '.join(together[1])} inside zone {zone} together at {_at(message.t, origin)}"
+                )
+    result.notes.append(
+        f"{states} states replayed; {len(entered)} stays in {len(zones)} zones, "
+        f"{len(excused_stays)} of them overlapping a fault left out"
+    )
     return result
 
 

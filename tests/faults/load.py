@@ -17,9 +17,22 @@ import requests
 
 from simulator.config import RobotConfig
 from tests.faults.checks import UNBOUND, HttpAttempt, PostedMission
+from vda5050.polygons import Polygon, contains
 
 MISSION_TIMEOUT = 900.0  # s: far beyond the suite's bounds; a mission that times out is a finding
 RETRY_PERIOD = 0.3
+# A RELEASE zone of capacity 1 (issue 46) among the first robots of the grid (`spread_robots`, 2 m apart):
+# their routes near their starts cross it, none starts or stops in it (a route ending inside would hold it
+# until its robot's next mission), and no charger (beside robots 1 and 2, on y = 0) is in it.
+ZONE_ID = "crossing"
+ZONE: tuple[tuple[float, float], ...] = ((0.3, 0.3), (1.7, 0.3), (1.7, 1.7), (0.3, 1.7))
+
+
+def zone_set_body(name: str) -> dict[str, Any]:
+    """The zone set of map `map` with `ZONE`, as POST /zone_set takes it."""
+    vertices = [{"x": x, "y": y} for x, y in ZONE]
+    zone = {"zone_id": ZONE_ID, "zone_type": "RELEASE", "release_loss_behavior": "STOP", "vertices": vertices}
+    return {"name": name, "map_id": "map", "zones": [zone]}
 
 
 @dataclass(frozen=True)
@@ -50,11 +63,17 @@ class PlannedMission:
 
 
 def plan_missions(
-    rng: random.Random, robots: list[RobotConfig], count: int, *, unbound_share: float = 0.0
+    rng: random.Random,
+    robots: list[RobotConfig],
+    count: int,
+    *,
+    unbound_share: float = 0.0,
+    avoid: Polygon = (),
 ) -> list[PlannedMission]:
     """`count` missions spread over `robots` (round robin, in a shuffled order): 1-3 route leaves of 1-3
-    waypoints each near the robot's start, and 0-2 `dummy_action` leaves that never fail, in random order.
-    A share of them (`unbound_share`) is posted without a robot: assignment binds it."""
+    waypoints each near the robot's start, none in `avoid` (a zone), and 0-2 `dummy_action` leaves that
+    never fail, in random order. A share of them (`unbound_share`) is posted without a robot: assignment
+    binds it."""
     order = list(robots)
     rng.shuffle(order)
     planned = []
@@ -63,13 +82,8 @@ def plan_missions(
         leaves: list[dict[str, Any]] = []
         for r in range(rng.randint(1, 3)):
             waypoints = [
-                {
-                    "x": round(robot.x + rng.uniform(-2, 2), 1),
-                    "y": round(robot.y + rng.uniform(-2, 2), 1),
-                    "theta": 0,
-                    "map_id": "map",
-                }
-                for _ in range(rng.randint(1, 3))
+                {"x": x, "y": y, "theta": 0, "map_id": "map"}
+                for x, y in (_near(rng, robot, avoid) for _ in range(rng.randint(1, 3)))
             ]
             leaves.append({"name": f"route{r}", "parent": "root", "route": {"waypoints": waypoints}})
         for a in range(rng.choice((0, 0, 1, 1, 2))):
@@ -83,6 +97,14 @@ def plan_missions(
         unbound = unbound_share > 0 and rng.random() < unbound_share
         planned.append(PlannedMission(f"fm{k:04d}", None if unbound else robot.name, leaves))
     return planned
+
+
+def _near(rng: random.Random, robot: RobotConfig, avoid: Polygon) -> tuple[float, float]:
+    """A point within 2 m of the robot's start (each axis, to 0.1 m), outside `avoid`."""
+    while True:
+        point = (round(robot.x + rng.uniform(-2, 2), 1), round(robot.y + rng.uniform(-2, 2), 1))
+        if not avoid or not contains(avoid, point):
+            return point
 
 
 class Api:

@@ -20,7 +20,7 @@ from typing import Any
 
 from tests.faults import checks
 from tests.faults.checks import CheckResult, ServiceEvent, Window
-from tests.faults.load import Api, PlannedMission, plan_missions
+from tests.faults.load import ZONE, ZONE_ID, Api, PlannedMission, plan_missions, zone_set_body
 from tests.faults.observer import Observer
 from tests.faults.stack import Stack, StackConfig, port_open, wait_until
 
@@ -273,6 +273,9 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
                 body = {"name": f"charger{index}", "kind": "CHARGER", "pose": pose}
                 if not api.post_retrying("/station", body, give_up_after=60):
                     raise RuntimeError(f"charger{index} could not be created: {api.snapshot()[-1]}")
+            for path, body in (("/zone_set", zone_set_body("faults")), ("/zone_set/faults/enable", {})):
+                if not api.post_retrying(path, body, give_up_after=60):
+                    raise RuntimeError(f"POST {path} did not succeed: {api.snapshot()[-1]}")
 
             def all_online() -> bool:
                 robots = api.get("/robot") or []
@@ -284,6 +287,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
                 stack.robots,
                 config.missions,
                 unbound_share=config.unbound_share,
+                avoid=ZONE,
             )
             before = round(len(planned) * config.before_fraction)
             pre = Poster(api, [(0.0, m) for m in planned[:before]])
@@ -379,6 +383,7 @@ def _run(config: RunConfig, *, echo: bool) -> Outcome:
         checks.check_http(attempts, events, grace=config.grace, origin=origin),
         checks.check_processes(exits, running_at_end, origin),
         checks.check_station_capacity(reader.stations, origin),
+        checks.check_zone_capacity(messages, {ZONE_ID: ZONE}, [*blind, *broker_excuse, *restarts], origin),
         checks.check_low_robots_charge(robots_final, stations_final),
     ]
     outcome.faults = injector.injected

@@ -17,8 +17,9 @@ from tests.faults.checks import (
     Window,
     WireMessage,
 )
-from tests.faults.load import plan_missions
+from tests.faults.load import ZONE, PlannedMission, plan_missions
 from tests.faults.runner import KINDS, plan_faults
+from vda5050.polygons import contains
 
 PREFIX = "uagv/v2/RobotCompany"
 
@@ -585,3 +586,50 @@ def test_a_low_robot_without_a_charger_while_one_is_free_fails():
 
     assert [problem.split(" at ")[0] for problem in result.problems] == ["robot critical", "robot r1"]
     assert "['c1'] have room" in result.problems[0]
+
+
+ZONES = {"crossing": ZONE}
+
+
+def at(t: float, serial: str, x: float, y: float) -> WireMessage:
+    """A state putting the robot at (x, y)."""
+    return WireMessage(
+        t, f"{PREFIX}/{serial}/state", {"headerId": int(t * 10), "agvPosition": {"x": x, "y": y}}
+    )
+
+
+def test_robots_taking_turns_through_a_zone_pass():
+    messages = [at(1, "a", 1, 1), at(2, "b", 0, 1), at(3, "a", 2, 1), at(4, "b", 1, 1), at(5, "b", 1, 3)]
+
+    assert checks.check_zone_capacity(messages, ZONES, []).ok
+
+
+def test_two_robots_inside_a_zone_at_once_fail_once_per_pair():
+    messages = [at(1, "a", 1, 1), at(2, "b", 1.4, 1.4), at(3, "b", 1.2, 1), at(4, "a", 3, 3)]
+
+    problems = checks.check_zone_capacity(messages, ZONES, []).problems
+
+    assert len(problems) == 1 and "robots a, b inside zone crossing together" in problems[0]
+
+
+def test_a_stay_in_a_zone_over_a_simulator_restart_is_left_out():
+    """Restarted, robot a was offline and held nothing: b may have been let in before a reported again."""
+    messages = [at(1, "a", 1, 1), at(5, "a", 1, 1), at(6, "b", 1, 1), at(7, "b", 3, 3)]
+
+    assert checks.check_zone_capacity(messages, ZONES, [Window(2, 4, "simulator")]).ok
+    assert not checks.check_zone_capacity(messages, ZONES, [Window(8, 9, "simulator")]).ok
+
+
+def waypoints(planned: list[PlannedMission]) -> list[tuple[float, float]]:
+    return [
+        (w["x"], w["y"]) for m in planned for n in m.tree if "route" in n for w in n["route"]["waypoints"]
+    ]
+
+
+def test_planned_waypoints_avoid_the_zone():
+    robots = spread_robots(4, "r")
+
+    avoiding = waypoints(plan_missions(random.Random(1), robots, 200, avoid=ZONE))
+
+    assert not any(contains(ZONE, point) for point in avoiding)
+    assert any(contains(ZONE, point) for point in waypoints(plan_missions(random.Random(1), robots, 200)))

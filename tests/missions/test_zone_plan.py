@@ -16,6 +16,7 @@ import missions.zone_plan
 from kit.api.errors import UsageError
 from missions.models import Mission
 from missions.robot_step import robot_step
+from missions.selectors import orders_held_back
 from missions.services import mission_create
 from missions.zone_plan import zones_plan_run
 from robots.models import Robot
@@ -158,6 +159,26 @@ def test_the_first_robot_gets_the_zone_and_drives_through_it_the_second_waits_at
     assert Robot.objects.get(name=b.name).zone_access["waiting"] == [{"map_id": "map", "zone_id": "square"}]
 
 
+def test_where_a_robot_is_comes_from_its_latest_state_not_its_row(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    """The row's position (the bridge's status flush) may lag: a robot that has just driven into the
+    square holds it as its latest state says."""
+    inside = make_robot(prefix="zone")
+    at(inside, 1.0, 1.0)
+    Robot.objects.filter(name=inside.name).update(pose_x=-5.0, pose_y=-5.0)  # not flushed yet
+    zones_plan_run()
+    b = on_route(make_robot, B_START, B_ROUTE)
+    zones_plan_run()
+    step(b)
+    takes(b, header_id=2)
+
+    zones_plan_run()
+
+    assert holders() == {("square", inside.name)}
+    assert ZoneReach.objects.get(robot=b.name).waiting == ["square"]
+
+
 @pytest.fixture
 def stepped(monkeypatch: pytest.MonkeyPatch) -> list[list[str]]:
     """The robots each plan run asks steps of (its `request_steps` calls)."""
@@ -256,6 +277,23 @@ def test_disabling_the_zone_set_lets_everything_go_and_the_held_back_base_is_rel
     [update] = orders(step(b))
     assert released(update) == [0, 2, 4]
     assert Robot.objects.get(name=a.name).zone_access == {}
+
+
+def test_a_robot_held_back_when_its_zone_set_went_is_stepped_at_every_run_until_released(
+    zone_set: ZoneSet, make_robot: MakeRobot, stepped: list[list[str]]
+) -> None:
+    a, b = both_at_the_square(make_robot)  # neither stepped since: both orders hold their start alone
+    zone_set_disable(actor=TEST_ACTOR, zone_set=zone_set)
+    zones_plan_run()
+    stepped.clear()
+    assert orders_held_back()  # beat goes on running the plan
+
+    zones_plan_run()  # their steps missed the news: asked for again
+
+    assert stepped == [sorted([a.name, b.name])]
+    for robot in (a, b):
+        orders(step(robot))
+    assert not orders_held_back()
 
 
 def asks(robot: Robot, request_id: str, zone_set: ZoneSet, *, header_id: int = 2) -> None:

@@ -5,7 +5,14 @@ import random
 
 import pytest
 
-from vda5050.polygons import contains, polygon_problem, segment_touches, segments_intersect, signed_area
+from vda5050.polygons import (
+    box_touches,
+    contains,
+    polygon_problem,
+    segment_touches,
+    segments_intersect,
+    signed_area,
+)
 
 SQUARE = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
 # An L: the notch (1..2, 1..2) is outside.
@@ -87,3 +94,32 @@ def test_segment_intersection_agrees_with_sampling():
         if any(contains(ELL, point) for point in samples):
             assert segment_touches(ELL, start, end), (start, end)
         assert segments_intersect(start, end, end, start)
+
+
+@pytest.mark.parametrize(
+    ("corner", "opposite", "touches"),
+    [
+        ((-1.0, 3.0), (3.0, -1.0), True),  # the L inside the box
+        ((1.2, 1.2), (1.8, 1.8), False),  # within the L's notch
+        ((-1.0, 0.5), (-0.5, 5.0), False),  # beside it
+        ((-1.0, 1.0), (3.0, 1.0), True),  # flat: a segment through it
+        ((0.5, 0.5), (0.5, 0.5), True),  # flat: a point in it
+    ],
+)
+def test_boxes_that_touch_an_l(corner, opposite, touches):
+    assert box_touches(ELL, corner, opposite) is touches
+
+
+def test_a_path_along_x_then_y_stays_in_the_box_box_touches_finds():
+    """Isaac's simulator drives an edge along X, then Y: a point of that path in the polygon is one the
+    box finds too; seeded."""
+    rng = random.Random(46)
+    for _ in range(2000):
+        (x0, y0), (x1, y1) = (
+            (rng.uniform(-1, 3), rng.uniform(-1, 3)),
+            (rng.uniform(-1, 3), rng.uniform(-1, 3)),
+        )
+        samples = [(x0 + (x1 - x0) * t / 100, y0) for t in range(101)]
+        samples += [(x1, y0 + (y1 - y0) * t / 100) for t in range(101)]
+        if any(contains(ELL, point) for point in samples):
+            assert box_touches(ELL, (x0, y0), (x1, y1)), ((x0, y0), (x1, y1))
