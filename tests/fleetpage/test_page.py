@@ -146,7 +146,7 @@ def test_a_mission_given_back_to_assignment_leaves_its_robots_queue_on_the_page(
         expect(queue).to_have_count(0)
 
 
-def test_the_enabled_zone_sets_of_the_map_shown_are_drawn_and_follow_enable_and_disable(
+def test_the_enabled_zone_sets_of_the_map_shown_are_drawn_with_their_holders_and_follow_enable_and_disable(
     server: GranianServer, make_robot
 ):
     robot = make_robot(prefix="zoned")
@@ -168,6 +168,16 @@ def test_the_enabled_zone_sets_of_the_map_shown_are_drawn_and_follow_enable_and_
         expect(zones).to_have_count(2)
         expect(fleet.page.locator('path.zone-release[data-zone="hall-v1/aisle"]')).to_have_count(1)
         expect(fleet.page.locator('path.zone-blocked[data-zone="hall-v1/pit"]')).to_have_count(1)
+
+        # The zone plan grants the robot the aisle (its status.zone_access), then lets it go.
+        held = fleet.page.locator('path.zone-held[data-zone="hall-v1/aisle"]')
+        expect(held).to_have_count(0)
+        access = {"held": [{"map_id": "hall", "zone_id": "aisle"}], "waiting": []}
+        Robot.objects.filter(name=robot.name).update(zone_access=access)
+        expect(held).to_have_count(1)
+        expect(fleet.page.locator("path.zone-held")).to_have_count(1)  # not the pit
+        Robot.objects.filter(name=robot.name).update(zone_access={"held": [], "waiting": []})
+        expect(held).to_have_count(0)
 
         zone_set_disable(actor=actor, zone_set=hall)
         expect(zones).to_have_count(0)

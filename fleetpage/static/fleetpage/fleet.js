@@ -20,9 +20,10 @@ const missions = new Map(); // name -> mission, as GET /mission/{name} has it; i
 const running = new Map(); // robot name -> the name of its RUNNING mission
 const stations = new Map(); // name -> the station as the stream last sent it
 const zoneSets = new Map(); // name -> the zone set as the stream last sent it
+const zoneHolders = new Map(); // "map_id/zone_id" -> the robots holding that zone (their status.zone_access)
 const changed = {
   robots: new Set(), missions: new Set(), missionRobots: new Set(), stations: new Set(), zoneSets: new Set(),
-  maps: false,
+  maps: false, zoneHolders: false,
 };
 let frame = 0;
 let received = null; // names sent since the stream (re)opened: after a snapshot, the others are gone
@@ -184,8 +185,7 @@ function drawStation(name) {
 }
 
 // The enabled zone sets of the map shown: each zone a polygon in its type's colour, under the stations. A zone
-// may carry `holders` (the robots granted it; the zone set API's shape plus that optional list): a zone held
-// is filled, and its tooltip names them.
+// a robot holds (its status.zone_access) is filled, and its tooltip names the robots.
 const zoneLayer = L.layerGroup().addTo(map);
 const zonePolygons = new Map(); // zone set name -> its zones' L.Polygons, for the enabled sets on the map shown
 
@@ -195,7 +195,7 @@ function drawZoneSet(name) {
   zonePolygons.delete(name);
   if (!zoneSet || !zoneSet.status.enabled || (zoneSet.map_id || DEFAULT_MAP) !== shownMap) return;
   const polygons = zoneSet.zones.map((zone) => {
-    const holders = zone.holders ?? [];
+    const holders = zoneHolders.get(`${zoneSet.map_id}/${zone.zone_id}`) ?? [];
     const polygon = L.polygon(zone.vertices.map((v) => [v.y, v.x]), {
       className: `zone zone-${zone.zone_type.toLowerCase()}${holders.length ? " zone-held" : ""}`,
       interactive: true,
@@ -490,6 +490,8 @@ function receive(kind, object) {
   if (kind === "robot") {
     const before = robots.get(object.name);
     if (!before || deleted || mapOf(before) !== mapOf(object)) changed.maps = true;
+    const held = (robot) => JSON.stringify(robot?.status?.zone_access?.held ?? []);
+    if (held(before) !== (deleted ? "[]" : held(object))) changed.zoneHolders = true;
     deleted ? robots.delete(object.name) : robots.set(object.name, object);
     changed.robots.add(object.name);
   } else if (kind === "station") {
@@ -550,6 +552,10 @@ function flush() {
   frame = 0;
   trimMissions();
   if (changed.maps) updateMapChoice();
+  if (changed.zoneHolders) {
+    updateZoneHolders();
+    for (const name of zoneSets.keys()) changed.zoneSets.add(name);
+  }
   for (const name of changed.zoneSets) drawZoneSet(name);
   for (const name of changed.stations) drawStation(name);
   for (const name of changed.robots) drawRobot(name);
@@ -573,7 +579,17 @@ function flush() {
   changed.missionRobots.clear();
   changed.stations.clear();
   changed.zoneSets.clear();
-  changed.maps = changed.list = changed.panel = false;
+  changed.maps = changed.list = changed.panel = changed.zoneHolders = false;
+}
+
+function updateZoneHolders() {
+  zoneHolders.clear();
+  for (const [name, robot] of robots) {
+    for (const zone of robot.status.zone_access?.held ?? []) {
+      const key = `${zone.map_id}/${zone.zone_id}`;
+      zoneHolders.set(key, [...(zoneHolders.get(key) ?? []), name]);
+    }
+  }
 }
 
 function drawCounts() {
