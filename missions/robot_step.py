@@ -17,7 +17,6 @@ import orjson
 from django.conf import settings
 from django.db import connection, transaction
 from django.db.backends.utils import CursorWrapper
-from django.db.models import JSONField
 from django.utils import timezone
 
 from dispatch.held import FINAL
@@ -37,12 +36,14 @@ from kit.wake import request_assignment, request_zones_plan
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.rows import (
-    MISSION_FIELDS,
+    MISSION_RECORD_FIELDS,
     RELEASE_SQL,
     ROBOT_QUEUE_LOCK_SQL,
+    binding_record,
     binding_time,
     mission_columns,
     mission_db_values,
+    mission_records,
     mission_row_delete,
     robot_charge_threshold_sql,
 )
@@ -105,9 +106,6 @@ ROBOT_FOR_STEP_SQL = f"""
     FROM {Robot._meta.db_table} r LEFT JOIN {ZoneReachRow._meta.db_table} z ON z.robot = r.name
     WHERE r.name = %s FOR UPDATE OF r
 """
-MISSION_RECORD_FIELDS = tuple(f.name for f in fields(MissionRecord))
-# Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
-MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
 CURRENT_MISSIONS_SQL = f"""
     SELECT {", ".join(mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
     WHERE robot = %s AND state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
@@ -329,7 +327,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         # The running mission and the next queued one: a step that ends a mission usually starts the next.
         missions_cursor.execute(CURRENT_MISSIONS_SQL, [name, 2])
         row = robot_cursor.fetchone()
-        upcoming = _mission_records(missions_cursor.fetchall())
+        upcoming = mission_records(missions_cursor.fetchall())
     if row is None:
         return StepEnd.SETTLED, None
     (
@@ -406,6 +404,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         zone_reach=zone_reach,
     )
     ended_a_mission = False
+    claimed: MissionRecord | None = None  # an unbound mission the step claimed, as stored: still unbound
     while True:
         mission = upcoming.pop(0) if upcoming else None
         result = step(
@@ -430,11 +429,13 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             view = replace(view, zone_reach=replace(zone_reach, responses_due=False))  # sent once a step
         view = replace(view, state=result.robot_state)
         if mission is not None and result.mission is not None:
-            stored = mission
+            # A claimed mission is bound with its first write (`mission_claim`).
+            bound = claimed is not None and claimed.name == mission.name
+            stored, bind_to = (claimed, name) if bound else (mission, None)
             for passed in result.passed:  # each its own write, for the change feed: a leaf seen RUNNING
-                _store_mission(stored, passed)
-                stored = passed
-            _store_mission(stored, result.mission)
+                _store_mission(stored, passed, bind_to=bind_to)
+                stored, bind_to = passed, None
+            _store_mission(stored, result.mission, bind_to=bind_to)
             if result.notify is not None:
                 outcome.notifies.append((mission.name, result.notify))
             if result.mission.done:
@@ -453,8 +454,10 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         upcoming = upcoming or _current_missions(name, count=2)
         # Its next may be an unbound one, unless it ended the mission not idle (charging, in teleop).
         if not upcoming and view.state == RobotState.IDLE and _unbound_seen.is_set():
-            if mission_claim(robot=name) is not None:
-                upcoming = _current_missions(name, count=2)
+            claimed = mission_claim(robot=name)
+            if claimed is not None:  # the step runs it as bound to the robot, and binds it when it stores it
+                binding = [*claimed.assignment, binding_record(name, now)]
+                upcoming = [replace(claimed, assignment=binding, waiting_reason=None)]
             else:
                 _unbound_seen.clear()  # until the look at the queue after the commit sees some again
     if view.state != robot_state:
@@ -513,20 +516,7 @@ def _current_missions(robot: str, *, count: int) -> list[MissionRecord]:
     """The robot's RUNNING mission, then its queue by priority (highest first), FIFO among equals, locked."""
     with connection.cursor() as cursor:
         cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
-        return _mission_records(cursor.fetchall())
-
-
-def _mission_records(rows: list[tuple[Any, ...]]) -> list[MissionRecord]:
-    """CURRENT_MISSIONS_SQL's rows as the engine's records."""
-    return [
-        MissionRecord(
-            *(
-                orjson.loads(value) if is_json and value is not None else value
-                for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
-            )
-        )
-        for row in rows
-    ]
+        return mission_records(cursor.fetchall())
 
 
 def dispatch_settings() -> DispatchSettings:
@@ -556,13 +546,16 @@ def _live_state(name: str) -> tuple[State | None, datetime | None, dict[str, int
         return None, None, published
 
 
-def _store_mission(before: MissionRecord, after: MissionRecord) -> None:
-    """Write the fields the step changed, in one UPDATE."""
+def _store_mission(before: MissionRecord, after: MissionRecord, *, bind_to: str | None = None) -> None:
+    """Write the fields the step changed, in one UPDATE; with `bind_to`, also the binding of the unbound
+    mission `before` to that robot (`after.assignment` records it)."""
     changed = {
         name: getattr(after, name)
         for name in STEP_STATUS_FIELDS
         if getattr(before, name) != getattr(after, name)
     }
+    if bind_to is not None:
+        changed |= {"robot": bind_to, "assignment": after.assignment}
     if not changed:
         return
     values = {**changed, "updated_at": timezone.now()}

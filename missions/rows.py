@@ -4,12 +4,15 @@ As plain SQL they skip the ORM's query compiler, which costs more than the queri
 """
 
 from collections.abc import Mapping
+from dataclasses import fields
 from datetime import UTC, datetime
 from typing import Any
 
+import orjson
 from django.db import connection
 from django.db.models import JSONField
 
+from dispatch.records import MissionRecord
 from dispatch.vocabulary import Lifecycle, MissionState, StationKind
 from kit.db import jsonb
 from missions.models import Mission
@@ -33,6 +36,25 @@ def mission_db_values(values: Mapping[str, Any]) -> list[Any]:
 
 def mission_columns(names: tuple[str, ...]) -> list[str]:
     return [connection.ops.quote_name(MISSION_FIELDS[name].column) for name in names]
+
+
+# The columns of a step's mission record (`mission_records`), in the record's order.
+MISSION_RECORD_FIELDS = tuple(f.name for f in fields(MissionRecord))
+# Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
+MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
+
+
+def mission_records(rows: list[tuple[Any, ...]]) -> list[MissionRecord]:
+    """Rows of MISSION_RECORD_FIELDS' columns as the engine's records."""
+    return [
+        MissionRecord(
+            *(
+                orjson.loads(value) if is_json and value is not None else value
+                for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
+            )
+        )
+        for row in rows
+    ]
 
 
 # A step may end the robot's last mission without seeing a mission created meanwhile (it read the queue
@@ -105,6 +127,12 @@ def robot_charge_threshold_sql(robot: str) -> str:
 def binding_time(at: datetime) -> str:
     """A time in a mission's assignment record, as the API writes times."""
     return at.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def binding_record(robot: str, at: datetime) -> dict[str, Any]:
+    """The entry a binding adds to a mission's assignment history (as `missions.services.BIND_SQL` writes
+    it): released_at and reason stay empty until the binding is released (`_release_sql`)."""
+    return {"robot": robot, "bound_at": binding_time(at), "released_at": None, "reason": None}
 
 
 def _release_sql(condition: str) -> str:
