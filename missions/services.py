@@ -42,7 +42,7 @@ from missions.rows import (
     robot_busy_sql,
 )
 from missions.selectors import assignment_inputs, claim_inputs
-from missions.tuning import CLAIM_PAGE
+from missions.tuning import CLAIM_PAGE, CLAIM_TRIES
 from robots.models import Robot
 
 logger = logging.getLogger(__name__)
@@ -451,25 +451,31 @@ def mission_claim(*, robot: str) -> MissionRecord | None:
 
     In a busy fleet robots fall free one at a time while missions wait: the robot is then the only free
     one, and binding it in its own step spares a run, a step and a transaction (issue 41's steady state).
-    Robots that fall free together take different missions (each its best one no other claim holds).
-    Missions younger than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them for a
-    burst, and so is a robot that none of the `CLAIM_PAGE` first missions suits (the run reads them all).
+    Robots that fall free together take different missions (each its best one no other claim holds); one
+    whose choices all went to others meanwhile reads the pool again, once (`CLAIM_TRIES`): a robot that
+    claims nothing falls idle and asks for an assignment run, which reads every free robot and the whole
+    pool. Missions younger than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them
+    for a burst, and so is a robot that none of the `CLAIM_PAGE` first missions suits (the run reads them
+    all).
     """
-    now = timezone.now()
-    inputs = claim_inputs(
-        robot=robot,
-        created_before=now - timedelta(seconds=settings.ASSIGNMENT_QUIET_SECONDS),
-        limit=CLAIM_PAGE,
-    )
-    if not inputs.missions:
-        return None
-    choices = choices_of(inputs.robots[0], inputs.missions)
-    if not choices:
-        return None
-    with connection.cursor() as cursor:
-        cursor.execute(CLAIM_SQL, [choices, choices])
-        rows = cursor.fetchall()
-    return mission_records(rows)[0] if rows else None
+    for _ in range(CLAIM_TRIES):
+        now = timezone.now()
+        inputs = claim_inputs(
+            robot=robot,
+            created_before=now - timedelta(seconds=settings.ASSIGNMENT_QUIET_SECONDS),
+            limit=CLAIM_PAGE,
+        )
+        if not inputs.missions:
+            return None
+        choices = choices_of(inputs.robots[0], inputs.missions)
+        if not choices:
+            return None
+        with connection.cursor() as cursor:
+            cursor.execute(CLAIM_SQL, [choices, choices])
+            rows = cursor.fetchall()
+        if rows:
+            return mission_records(rows)[0]
+    return None
 
 
 def _bind(bindings: dict[str, str], now: datetime) -> dict[str, str]:

@@ -14,6 +14,7 @@ from pytest_django.fixtures import Settings
 from changes.models import Change
 from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE, NOT_YET_ASSIGNED
 from missions import robot_step as robot_step_module
+from missions import services
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import robot_step
@@ -303,6 +304,30 @@ def test_a_robot_fallen_free_claims_the_oldest_of_the_highest_priority_it_can_do
 
     assert claim("r1") == "urgent_lift"
     assert robot_of("urgent_lift") is None  # its step binds it, in the write that starts it
+
+
+def test_a_claim_whose_choices_went_to_others_meanwhile_reads_the_pool_again(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    robot("r1")
+    robot("r2", x=5.0)
+    unbound("m1")
+    unbound("m2")
+    for name in ("m1", "m2"):
+        created_ago(name, 1.0)
+    monkeypatch.setattr(services, "CLAIM_PAGE", 1)
+    read = services.claim_inputs
+
+    def read_then_lose_it(**kwargs: Any) -> Any:
+        """The page read, then its mission bound by another robot's claim before this one locks it."""
+        inputs = read(**kwargs)
+        if inputs.missions and inputs.missions[0].name == "m1":
+            Mission.objects.filter(name="m1").update(robot="r2")
+        return inputs
+
+    monkeypatch.setattr(services, "claim_inputs", read_then_lose_it)
+
+    assert claim("r1") == "m2"
 
 
 def test_a_claim_leaves_missions_younger_than_the_quiet_time_to_the_run(settings: Settings) -> None:
