@@ -78,16 +78,26 @@ def mission_row_delete(name: str) -> None:
         cursor.execute(MISSION_DELETE_SQL, [name])
 
 
+# A live mission that keeps its robot busy: running, or bound by assignment and not started yet. The state
+# list lets mission_queue_idx find a robot's live missions alone, not its whole history.
+_BUSY_MISSION_SQL = f"""
+    busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
+    AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
+"""
+# Every busy robot, as a set: for a read of many robots, `name NOT IN (BUSY_ROBOTS_SQL)` is one scan of the
+# live missions hashed once, where robot_busy_sql per robot is an index probe per robot (and, planned while
+# the tables are still small, a scan per robot).
+BUSY_ROBOTS_SQL = f"""
+    SELECT busy.robot FROM {Mission._meta.db_table} busy WHERE busy.robot IS NOT NULL AND {_BUSY_MISSION_SQL}
+"""
+
+
 def robot_busy_sql(robot: str) -> str:
     """EXISTS: the robot (an SQL expression) has a running mission, or one assignment bound to it that has
-    not started yet. The state list lets mission_queue_idx find the robot's live missions alone, not
-    its whole history."""
+    not started yet."""
     return f"""
         EXISTS (
-            SELECT 1 FROM {Mission._meta.db_table} busy
-            WHERE busy.robot = {robot}
-              AND busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
-              AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
+            SELECT 1 FROM {Mission._meta.db_table} busy WHERE busy.robot = {robot} AND {_BUSY_MISSION_SQL}
         )
     """
 

@@ -27,7 +27,7 @@ from kit.api.rows import object_get
 from kit.db import json_column
 from missions.filters import MissionFilter
 from missions.models import Mission
-from missions.rows import factsheet_actions_sql, robot_busy_sql, robot_charge_threshold_sql
+from missions.rows import BUSY_ROBOTS_SQL, factsheet_actions_sql, robot_busy_sql, robot_charge_threshold_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
@@ -240,13 +240,17 @@ _BUSY_SQL = robot_busy_sql("r.name")
 # level at which it charges first, `robot_charge_threshold_sql`): such a robot falls idle and the station
 # plan sends it to charge, instead of its next mission taking it down to its critical level.
 _BATTERY_OK_SQL = f"r.battery_level >= r.battery_critical_level AND {robot_charge_threshold_sql('r')} IS NULL"
+# A robot's abilities, place and whether it may take a mission (`_candidate_robot`'s first columns).
+_ROBOT_COLUMNS_SQL = f"""
+    r.name, r.labels, r.agv_class, {factsheet_actions_sql("r")},
+    r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
+    r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
+    {_BATTERY_OK_SQL}, r.maps
+"""
 # Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
-# found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
+# found by mission_queue_idx. Followed by a WHERE clause: every robot, or the free ones.
 CANDIDATE_ROBOTS_SQL = f"""
-    SELECT r.name, r.labels, r.agv_class, {factsheet_actions_sql("r")},
-        r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
-        r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
-        {_BATTERY_OK_SQL}, r.maps, {_BUSY_SQL},
+    SELECT {_ROBOT_COLUMNS_SQL}, {_BUSY_SQL},
         CASE WHEN r.state = '{RobotState.IDLE}' THEN r.state_since END,
         head.priority, head.created_at
     FROM {Robot._meta.db_table} r
@@ -257,10 +261,15 @@ CANDIDATE_ROBOTS_SQL = f"""
     ) AS head ON true
 """
 FREE_ROBOTS_SQL = f"""{CANDIDATE_ROBOTS_SQL}
-    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND NOT {_BUSY_SQL}
+    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND r.name NOT IN ({BUSY_ROBOTS_SQL})
 """
-# One robot, locked: the robot that claims (its step holds the lock already).
-CANDIDATE_ROBOT_SQL = f"{CANDIDATE_ROBOTS_SQL} WHERE r.name = %s FOR UPDATE OF r"
+# The robot that claims (`missions.services.mission_claim`): its step holds its lock and has just read its
+# queue empty, so it is not busy and has no queue head of its own; how long it has been idle only breaks
+# ties between robots, and it is alone.
+CLAIMANT_SQL = f"""
+    SELECT {_ROBOT_COLUMNS_SQL}, false, NULL::timestamptz, NULL::integer, NULL::timestamptz
+    FROM {Robot._meta.db_table} r WHERE r.name = %s
+"""
 
 
 def unbound_missions_wait() -> bool:
@@ -291,11 +300,12 @@ def assignment_inputs(*, free_only: bool) -> AssignmentInputs:
 
 def claim_inputs(*, robot: str, created_before: datetime, limit: int) -> AssignmentInputs:
     """The robot `robot` and the first `limit` unbound missions created before `created_before`, highest
-    priority and oldest first: what a robot that just fell free chooses its next mission from."""
+    priority and oldest first: what a robot that just fell free (its queue empty) chooses its next mission
+    from."""
     missions, waiting_reasons = _unbound_missions(created_before=created_before, limit=limit)
     if not missions:  # the pool is empty (a fleet of named missions): the robot is not read
         return AssignmentInputs([], [], {})
-    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
+    robots = _candidate_robots(CLAIMANT_SQL, [robot])
     return AssignmentInputs(missions if robots else [], robots, waiting_reasons)
 
 
