@@ -84,9 +84,9 @@ _BUSY_MISSION_SQL = f"""
     busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
     AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
 """
-# Every busy robot, as a set: for a read of many robots, `name NOT IN (BUSY_ROBOTS_SQL)` is one scan of the
-# live missions hashed once, where robot_busy_sql per robot is an index probe per robot (and, planned while
-# the tables are still small, a scan per robot).
+# Every busy robot, as a set: for a read of many robots, `name IN (BUSY_ROBOTS_SQL)` is one scan of the live
+# missions hashed once, where robot_busy_sql per robot is an index probe per robot (and, planned while the
+# tables are still small, a scan of the robot's whole history or of every live mission per robot).
 BUSY_ROBOTS_SQL = f"""
     SELECT busy.robot FROM {Mission._meta.db_table} busy WHERE busy.robot IS NOT NULL AND {_BUSY_MISSION_SQL}
 """

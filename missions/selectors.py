@@ -27,7 +27,7 @@ from kit.api.rows import object_get
 from kit.db import json_column
 from missions.filters import MissionFilter
 from missions.models import Mission
-from missions.rows import BUSY_ROBOTS_SQL, factsheet_actions_sql, robot_busy_sql, robot_charge_threshold_sql
+from missions.rows import BUSY_ROBOTS_SQL, factsheet_actions_sql, robot_charge_threshold_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
@@ -235,7 +235,6 @@ _MAY_WORK_SQL = f"""
         WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
     )
 """
-_BUSY_SQL = robot_busy_sql("r.name")
 # Its battery lets it take a mission: above its critical level, and not due to charge (at or below the
 # level at which it charges first, `robot_charge_threshold_sql`): such a robot falls idle and the station
 # plan sends it to charge, instead of its next mission taking it down to its critical level.
@@ -247,10 +246,12 @@ _ROBOT_COLUMNS_SQL = f"""
     r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
     {_BATTERY_OK_SQL}, r.maps
 """
-# Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
-# found by mission_queue_idx. Followed by a WHERE clause: every robot, or the free ones.
+# Robots with what makes them free or not, and their own queue's head (`QueueHead`, found by
+# mission_queue_idx). Whether they are busy is one look at the live missions for them all (`BUSY_ROBOTS_SQL`).
+# Followed by a WHERE clause: every robot, or the free ones.
 CANDIDATE_ROBOTS_SQL = f"""
-    SELECT {_ROBOT_COLUMNS_SQL}, {_BUSY_SQL},
+    WITH busy AS MATERIALIZED ({BUSY_ROBOTS_SQL})
+    SELECT {_ROBOT_COLUMNS_SQL}, r.name IN (SELECT robot FROM busy),
         CASE WHEN r.state = '{RobotState.IDLE}' THEN r.state_since END,
         head.priority, head.created_at
     FROM {Robot._meta.db_table} r
@@ -261,7 +262,7 @@ CANDIDATE_ROBOTS_SQL = f"""
     ) AS head ON true
 """
 FREE_ROBOTS_SQL = f"""{CANDIDATE_ROBOTS_SQL}
-    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND r.name NOT IN ({BUSY_ROBOTS_SQL})
+    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND r.name NOT IN (SELECT robot FROM busy)
 """
 # The robot that claims (`missions.services.mission_claim`): its step holds its lock and has just read its
 # queue empty, so it is not busy and has no queue head of its own; how long it has been idle only breaks
