@@ -328,6 +328,9 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         missions_cursor.execute(CURRENT_MISSIONS_SQL, [name, 2])
         row = robot_cursor.fetchone()
         upcoming = mission_records(missions_cursor.fetchall())
+    # Fewer than asked: the whole queue is read, and is not read again once these end (a mission queued since
+    # is the look after the commit's, QUEUE_GREW_SQL).
+    queue_read_whole = len(upcoming) < 2
     if row is None:
         return StepEnd.SETTLED, None
     (
@@ -451,7 +454,8 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         if mission is None or not (result.mission.done or result.delete_mission):
             break
         ended_a_mission = True
-        upcoming = upcoming or _current_missions(name, count=2)
+        if not (upcoming or queue_read_whole):
+            upcoming = _current_missions(name, count=2)
         # Its next may be an unbound one, unless it ended the mission not idle (charging, in teleop).
         if not upcoming and view.state == RobotState.IDLE and _unbound_seen.is_set():
             claimed = mission_claim(robot=name)
