@@ -325,9 +325,8 @@ class MissionStatusSerializer(serializers.Serializer):
     waiting_reason = serializers.CharField(
         allow_null=True,
         help_text="Why a queued mission has not started yet (e.g. the robot is offline, a map it names is "
-        "not enabled; for an unbound mission: no robot carries its labels, no capable robot is online, "
-        "...; one that only waits its turn for a busy fleet keeps 'Waiting for assignment to choose a "
-        "robot'), or why a running mission's next route leaf waits for its map.",
+        "not enabled; for an unbound mission: no robot carries its labels, every capable robot is busy, "
+        "...), or why a running mission's next route leaf waits for its map.",
     )
     assignment = BindingSerializer(
         many=True,
