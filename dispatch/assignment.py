@@ -26,7 +26,7 @@ outnumber them, binding waits (`burst_hold`), since a burst bound as it arrives 
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
@@ -54,7 +54,6 @@ __all__ = [
     "assign",
     "burst_hold",
     "choices_of",
-    "reasons_to_store",
 ]
 
 # Why a mission waits: one reason per unbound mission, the first that holds in this order. The capability
@@ -72,8 +71,6 @@ NONE_ONLINE = "No capable robot is online"
 ALL_LOW_BATTERY = "Every capable robot's battery is low (below its critical level, or due to charge)"
 ALL_BUSY = "Every capable robot is busy"
 WAITING_TURN = "Waiting for a higher-priority or older mission"
-# A mission that only waits its turn: robots that can do it are online and charged, and every one is taken.
-TURN_REASONS = frozenset({NOT_YET_ASSIGNED, ALL_BUSY, WAITING_TURN})
 
 # Ranking the free robots of a mission: a robot without a pose on the mission's map counts after every
 # one with a pose (its cost is more than all distances of the band together); distances closer than
@@ -179,19 +176,6 @@ def choices_of(robot: CandidateRobot, missions: Sequence[UnboundMission]) -> lis
         for mission in sorted(missions, key=_mission_order)
         if _ahead_of(mission, robot.queue_head) and _stage(mission.selector, mission.maps, *offer) == _CAPABLE
     ]
-
-
-def reasons_to_store(stored: Mapping[str, str | None], waiting: Mapping[str, str]) -> dict[str, str]:
-    """The waiting reasons worth a write (mission -> reason), of `waiting` against the `stored` ones: those
-    that changed, but a mission that only waits its turn keeps the turn reason it shows. In a busy fleet
-    nearly every mission waits its turn a few seconds, new ones first as NOT_YET_ASSIGNED: writing it as
-    busy or as behind others would cost each a row version, its index entries and a change-feed row, for
-    no news an operator acts on. What needs one (no capable robot, none online or charged) is written."""
-    return {
-        name: reason
-        for name, reason in waiting.items()
-        if reason != stored.get(name) and not (reason in TURN_REASONS and stored.get(name) in TURN_REASONS)
-    }
 
 
 def _mission_order(mission: UnboundMission) -> tuple[int, datetime, str]:

@@ -19,7 +19,7 @@ from django.utils import timezone
 from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
-from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold, choices_of, reasons_to_store
+from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold, choices_of
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from dispatch.records import MissionRecord
 from dispatch.step import DEADLINE_PASSED
@@ -433,7 +433,9 @@ def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
     result = assign(inputs.missions, inputs.robots)
     with transaction.atomic():
         bound = _bind(result.bindings, now)
-        changed = reasons_to_store(inputs.waiting_reasons, result.waiting)
+        changed = {
+            name: reason for name, reason in result.waiting.items() if inputs.waiting_reasons[name] != reason
+        }
         if changed and with_reasons:
             with connection.cursor() as cursor:
                 cursor.execute(WAITING_REASONS_SQL, [now, list(changed), list(changed.values())])

@@ -23,7 +23,6 @@ from dispatch.assignment import (
     NO_ROBOT_TYPE,
     NO_ROBOTS,
     NONE_ONLINE,
-    NOT_YET_ASSIGNED,
     WAITING_TURN,
     Assignment,
     CandidateRobot,
@@ -34,7 +33,6 @@ from dispatch.assignment import (
     assign,
     burst_hold,
     choices_of,
-    reasons_to_store,
 )
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
@@ -529,34 +527,6 @@ def test_a_robots_first_choice_is_what_assignment_gives_it_alone(fleet: Fleet) -
     for robot in robots:
         alone = assign(missions, [robot]).bindings
         assert choices_of(robot, missions)[:1] == list(alone)
-
-
-# --- reasons_to_store: which waiting reasons are worth a write ---------------------------------------------
-
-LABELS = NO_LABELS.format(labels="lift")
-
-
-@pytest.mark.parametrize(
-    ("stored", "reason", "written"),
-    [
-        (NOT_YET_ASSIGNED, ALL_BUSY, False),  # a new mission only waiting its turn keeps what it shows
-        (NOT_YET_ASSIGNED, WAITING_TURN, False),
-        (ALL_BUSY, WAITING_TURN, False),
-        (WAITING_TURN, ALL_BUSY, False),
-        (ALL_BUSY, ALL_BUSY, False),  # unchanged
-        (LABELS, LABELS, False),
-        (NOT_YET_ASSIGNED, LABELS, True),  # what needs an operator is written at once
-        (NOT_YET_ASSIGNED, NONE_ONLINE, True),
-        (ALL_BUSY, ALL_LOW_BATTERY, True),
-        (LABELS, ALL_BUSY, True),  # and so is its end: a capable robot now exists, busy
-        (NONE_ONLINE, WAITING_TURN, True),
-        (None, ALL_BUSY, True),  # a mission given back to the pool shows no reason yet
-    ],
-)
-def test_a_waiting_reason_is_written_when_it_tells_more_than_waiting_a_turn(
-    stored: str | None, reason: str, written: bool
-) -> None:
-    assert reasons_to_store({"m": stored}, {"m": reason}) == ({"m": reason} if written else {})
 
 
 # --- burst_hold: a burst is bound together once it stops arriving ------------------------------------------

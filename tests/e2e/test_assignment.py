@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from rest_framework.test import APIClient
 
-from dispatch.assignment import NO_LABELS, NONE_ONLINE, NOT_YET_ASSIGNED
+from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE
 from tests.e2e.helpers import action, create_robot, get, route, wait_mission, wait_mission_where, wait_robot
 from tests.waiting import wait_for
 
@@ -70,7 +70,7 @@ def test_labels_beat_distance(api, simulator, unique):
 def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, simulator, unique):
     (robot,) = robots_at(api, simulator, unique, ("only", 0))
     busy = unique("busy")
-    # Busy long enough for beat's runs to look at the missions posted meanwhile.
+    # Busy long enough for beat's run to bring the reasons up to date (FLEET_ASSIGNMENT_CHECK_SECONDS).
     post_unbound(api, busy, [action("work", time=8, should_fail=0)])
     assert bound_robot(api, busy) == robot
     started = wait_mission(api, busy, {"RUNNING", "COMPLETED", "FAILED", "CANCELED"})
@@ -79,9 +79,8 @@ def test_a_late_high_priority_mission_takes_the_first_robot_that_frees_up(api, s
     low, high = unique("low"), unique("high")
     post_unbound(api, low, [route("go", (1, 0))])
     post_unbound(api, high, [route("go", (2, 0))], priority=5)
-    # Only waiting its turn: the reason it has from the POST on stands (no write of "every capable robot is
-    # busy" over it, `dispatch.assignment.reasons_to_store`).
-    waiting = wait_mission_where(api, high, lambda status: status["waiting_reason"] == NOT_YET_ASSIGNED)
+    # Past the reason it has from the POST on (NOT_YET_ASSIGNED), the assignment's own.
+    waiting = wait_mission_where(api, high, lambda status: status["waiting_reason"] == ALL_BUSY)
     assert waiting["robot"] is None
 
     first = wait_mission(api, high)

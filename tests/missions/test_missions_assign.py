@@ -97,20 +97,6 @@ def test_reasons_follow_the_robots_state() -> None:
     assert Mission.objects.get(name="m1").waiting_reason == ALL_BUSY
 
 
-def test_a_mission_that_only_waits_its_turn_keeps_its_first_reason() -> None:
-    robot("r1")
-    own = {"robot": "r1", "mission_tree": [{"route": {"waypoints": [{"x": 0, "y": 0}]}}]}
-    mission_create(actor=TEST_ACTOR, name="own", prefix=None, spec=own)
-    Mission.objects.filter(name="own").update(state=MissionState.RUNNING)
-    unbound("m1")
-    written = Mission.objects.get(name="m1").updated_at
-
-    missions_assign()
-
-    mission = Mission.objects.get(name="m1")
-    assert (mission.waiting_reason, mission.updated_at) == (NOT_YET_ASSIGNED, written)  # no write
-
-
 def test_a_robot_with_a_bound_mission_not_yet_started_gets_no_second_one() -> None:
     robot("r1")
     unbound("m1")
