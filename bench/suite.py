@@ -121,6 +121,9 @@ SUITES["assignment"] = {
     "unbound-n1000": [*UNBOUND_N1000, *REALISTIC_N1000[4:], "--duration", "60", "--warmup", "20"],
     "named-n1000": SUITES["short"]["realistic-n1000"],
 }
+# The steady state alone, unbound then named on one stack: A/B pairs of a change to issue 41's ratio.
+SUITES["steady"] = {name: SUITES["assignment"][name] for name in ("unbound-n1000", "named-n1000")}
+SUITES["unbound"] = {"unbound-n1000": SUITES["assignment"]["unbound-n1000"]}
 # The tests' (tests/bench/test_unbound.py): a few seconds of five robots and their missions without a robot.
 SUITES["tiny-unbound"] = {
     "unbound-n5": [

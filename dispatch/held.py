@@ -24,11 +24,11 @@ class StateDigest:
 
     `full` changes with anything a step reads. `events` and `finished_actions` with what needs a step
     whatever order the robot holds: started actions, errors, operating mode, charging, battery in whole
-    percent, pause, maps; and the actions that finished or failed, apart because a robot taking an order
-    commonly drops the finished ones of the order before and of its instant actions from its state, which
-    tells a step nothing (`takes_order_only`). Pose and other high-rate fields are left out of all three on
-    purpose: a moving robot must not cost a step per state message. Battery counts in whole percent because
-    it gates queued missions at the critical level.
+    percent, pause, maps, zone sets; and the actions that finished or failed, apart because a robot taking an
+    order commonly drops the finished ones of the order before and of its instant actions from its state,
+    which tells a step nothing (`takes_order_only`). Pose and other high-rate fields are left out of all
+    three on purpose: a moving robot must not cost a step per state message. Battery counts in whole percent
+    because it gates queued missions at the critical level.
     """
 
     full: str
@@ -68,6 +68,8 @@ def state_digest(state: State) -> StateDigest:
         str(state.paused),
         # A map enabled (or gone) starts or holds a mission that names it.
         ",".join(f"{m.map_id}/{m.map_version}/{m.map_status.value}" for m in state.maps or ()),
+        # A zone set arrived, enabled or gone: the next move of its distribution (`dispatch.zone_sets`).
+        ",".join(f"{z.zone_set_id}/{z.zone_set_status.value}" for z in state.zone_sets or ()),
     ]
     return StateDigest(
         full="|".join([*progress, finished_actions, *events]),

@@ -14,6 +14,7 @@ from vda5050.models import (
     InstantActionsContent,
     OrderContent,
     ResponsesContent,
+    ZoneSetContent,
 )
 from vda5050.topics import Topic
 
@@ -118,9 +119,10 @@ class ActionRecord:
 
 @dataclass(frozen=True)
 class Outgoing:
-    """A message to publish to the robot: an order or instant actions (header stamped when sent)."""
+    """A message to publish to the robot: an order, instant actions or (3.0) a zone set (header stamped
+    when sent)."""
 
-    content: OrderContent | InstantActionsContent | ResponsesContent
+    content: OrderContent | InstantActionsContent | ZoneSetContent | ResponsesContent
 
     @property
     def topic(self) -> Topic:
@@ -129,7 +131,7 @@ class Outgoing:
             return Topic.ORDER
         if isinstance(self.content, ResponsesContent):
             return Topic.RESPONSES
-        return Topic.INSTANT_ACTIONS
+        return Topic.ZONE_SET if isinstance(self.content, ZoneSetContent) else Topic.INSTANT_ACTIONS
 
 
 @dataclass

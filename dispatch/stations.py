@@ -8,6 +8,11 @@ The rules, in the order they decide:
   heartbeat timeout), holds another station too (the first by station name is kept), holds a parking
   station and is no longer idle or has left it (it got a mission), or holds a charger its charging trip
   failed to reach.
+- Back at its charger: a robot charging (no stopCharging of ours pending) at the pose of a charger it may
+  use but holding none — its reservation was released while it was offline — takes that charger again
+  where it has room, and charges on under the rules below; where the charger went to another robot
+  meanwhile, it is sent stopCharging (then, if low, it is sent elsewhere or waits like any low robot). A
+  robot charging anywhere else charges by someone else's doing, and is left alone.
 - Stop charging: a robot at its charger stops (stopCharging, its charger released) once its battery reaches
   `recommended_maximum`, or once the robot no longer reports `charging` (full, where that is null).
 - Charging: a robot is low at or below `recommended_minimum` (where that is null, its critical level), or
@@ -30,6 +35,7 @@ from datetime import datetime
 
 from dispatch.assignment import Pose
 from dispatch.vocabulary import StationKind
+from vda5050.orders import DEFAULT_ALLOWED_DEVIATION_XY
 
 __all__ = [
     "CHARGING",
@@ -43,6 +49,7 @@ __all__ = [
     "Battery",
     "Pose",
     "Release",
+    "Resume",
     "StationPlan",
     "StationRobot",
     "StationSite",
@@ -68,6 +75,9 @@ GOT_MISSION = "robot got a mission"
 CHARGED = "charged"
 LEFT_FOR_CHARGER = "left for a charger"
 TRIP_FAILED = "charging trip failed"
+
+# How near a station's pose a robot stands at it: the deviation its trip's last node allows.
+AT_STATION_METRES = DEFAULT_ALLOWED_DEVIATION_XY
 
 
 @dataclass(frozen=True)
@@ -111,10 +121,16 @@ class StationRobot:
     retry_at: datetime | None = None  # no new charging trip before then (a failed trip's backoff)
     charge_now: bool = False  # an operator asked it to charge now, whatever its battery
     left_parking: bool = False  # a client's mission started since its latest parking trip ended
+    stopping: bool = False  # its latest stopCharging is not reported FINISHED (pending, or refused)
 
     @property
     def wants_charge(self) -> bool:
         return self.charge_now or self.battery.low
+
+    @property
+    def charges_on(self) -> bool:
+        """Charging, online, and not told to stop: a robot that may hold the charger it stands at."""
+        return self.online and self.battery.charging and not self.stopping
 
 
 @dataclass(frozen=True)
@@ -130,6 +146,15 @@ class StationSite:
     def serves(self, robot: StationRobot) -> bool:
         on_map = robot.pose is not None and robot.pose.map_id == self.pose.map_id
         return on_map and (not self.robot_types or robot.robot_type in self.robot_types)
+
+    def charges(self, robot: StationRobot) -> bool:
+        """A charger the robot may use, the robot charging on at its pose."""
+        return (
+            self.kind == StationKind.CHARGER
+            and robot.charges_on
+            and self.serves(robot)
+            and _distance(robot, self) <= AT_STATION_METRES
+        )
 
 
 @dataclass(frozen=True)
@@ -150,11 +175,22 @@ class Release:
 
 
 @dataclass(frozen=True)
+class Resume:
+    """A robot charging at a charger it held no more (offline meanwhile) that takes it again."""
+
+    robot: str
+    station: str
+
+
+@dataclass(frozen=True)
 class StationPlan:
     charging_trips: tuple[Trip, ...]
     parking_trips: tuple[Trip, ...]
-    stop_charging: tuple[str, ...]  # robots to send stopCharging (their charger is among the releases)
+    # Robots to send stopCharging: charged (their charger is among the releases), or back at a charger
+    # another robot holds now.
+    stop_charging: tuple[str, ...]
     releases: tuple[Release, ...]
+    resumed: tuple[Resume, ...]
     waiting: dict[str, str]  # robot wanting a charge -> why it has no charging trip
     reservations: dict[str, tuple[str, ...]]  # every station -> the robots holding it after this plan
 
@@ -170,9 +206,14 @@ def plan_stations(
     by_name = {robot.name: robot for robot in robots}
     stations = sorted(stations, key=lambda station: station.name)
     kinds = {station.name: station.kind for station in stations}
+    sites = {station.name: station for station in stations}
     held: dict[str, list[str]] = {station.name: [] for station in stations}
     holding: dict[str, str] = {}  # robot -> the station it holds
     releases: list[Release] = []
+
+    def reserve(robot: StationRobot, station: StationSite) -> None:
+        held[station.name].append(robot.name)
+        holding[robot.name] = station.name
 
     for station in stations:
         for name in station.reservations:
@@ -183,18 +224,34 @@ def plan_stations(
                 releases.append(Release(name, station.name, HELD_TWICE))
             elif station.kind == StationKind.PARKING and (not robot.idle or robot.left_parking):
                 releases.append(Release(name, station.name, GOT_MISSION))
-            elif station.kind == StationKind.CHARGER and robot.trip_failed:
+            elif station.kind == StationKind.CHARGER and robot.trip_failed and not station.charges(robot):
                 releases.append(Release(name, station.name, TRIP_FAILED))
             elif len(held[station.name]) >= station.capacity:
                 releases.append(Release(name, station.name, OVER_CAPACITY))
             else:
-                held[station.name].append(name)
-                holding[name] = station.name
+                reserve(robot, station)
 
-    stop_charging = []
+    resumed, stop_charging = [], []
+    back = sorted(
+        (robot for robot in robots if robot.charges_on and robot.name not in holding),
+        key=lambda robot: (robot.battery.level, robot.name),
+    )
+    for robot in back:
+        at = [station for station in stations if station.charges(robot)]
+        if not at:
+            continue
+        free = [station for station in at if len(held[station.name]) < station.capacity]
+        if free:
+            charger = _nearest(robot, free)
+            resumed.append(Resume(robot.name, charger.name))
+            reserve(robot, charger)
+        else:
+            stop_charging.append(robot.name)
+
     for name, station in sorted(holding.items()):
         robot = by_name[name]
-        if kinds[station] == StationKind.CHARGER and robot.at_station and robot.battery.charged:
+        at_charger = robot.at_station or sites[station].charges(robot)
+        if kinds[station] == StationKind.CHARGER and at_charger and robot.battery.charged:
             stop_charging.append(name)
             releases.append(Release(name, station, CHARGED))
             held[station].remove(name)
@@ -206,10 +263,6 @@ def plan_stations(
             held[left].remove(robot.name)
             releases.append(Release(robot.name, left, LEFT_FOR_CHARGER))
         return left
-
-    def reserve(robot: StationRobot, station: StationSite) -> None:
-        held[station.name].append(robot.name)
-        holding[robot.name] = station.name
 
     charging_trips, waiting = [], {}
     chargers = [station for station in stations if station.kind == StationKind.CHARGER]
@@ -253,8 +306,9 @@ def plan_stations(
     return StationPlan(
         charging_trips=tuple(charging_trips),
         parking_trips=tuple(parking_trips),
-        stop_charging=tuple(stop_charging),
+        stop_charging=tuple(sorted(stop_charging)),
         releases=tuple(releases),
+        resumed=tuple(resumed),
         waiting=waiting,
         reservations={name: tuple(robots_there) for name, robots_there in held.items()},
     )
@@ -293,11 +347,10 @@ def _parks(robot: StationRobot, holding: dict[str, str], *, now: datetime, after
 
 def _nearest(robot: StationRobot, stations: list[StationSite]) -> StationSite:
     """The station nearest the robot in a straight line (all on its map); equal distances by name."""
+    return min(stations, key=lambda station: (_distance(robot, station), station.name))
+
+
+def _distance(robot: StationRobot, station: StationSite) -> float:
+    """In a straight line, the robot on the station's map."""
     assert robot.pose is not None
-    return min(
-        stations,
-        key=lambda station: (
-            math.hypot(station.pose.x - robot.pose.x, station.pose.y - robot.pose.y),
-            station.name,
-        ),
-    )
+    return math.hypot(station.pose.x - robot.pose.x, station.pose.y - robot.pose.y)

@@ -30,8 +30,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from dispatch.polygons import Point, box_touches, contains
 from vda5050.models import Request
+from vda5050.polygons import Point, box_touches, contains
 from vda5050.zones import GrantType
 
 ACCESS = "ACCESS"  # the zone request type this core answers (REPLANNING is COORDINATED_REPLANNING's)

@@ -17,7 +17,6 @@ import orjson
 from django.conf import settings
 from django.db import connection, transaction
 from django.db.backends.utils import CursorWrapper
-from django.db.models import JSONField
 from django.utils import timezone
 
 from dispatch.held import FINAL
@@ -31,17 +30,20 @@ from dispatch.records import (
     ZoneReach,
 )
 from dispatch.step import step
+from dispatch.zone_sets import ZoneSetMoves, plan_zone_sets
 from kit.db import json_column, jsonb, pipelined_transaction
 from kit.wake import request_assignment, request_zones_plan
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.rows import (
-    MISSION_FIELDS,
+    MISSION_RECORD_FIELDS,
     RELEASE_SQL,
     ROBOT_QUEUE_LOCK_SQL,
+    binding_record,
     binding_time,
     mission_columns,
     mission_db_values,
+    mission_records,
     mission_row_delete,
     robot_charge_threshold_sql,
 )
@@ -57,9 +59,11 @@ from vda5050.codec import encode, header_for, parse_state
 from vda5050.errors import ProtocolError
 from vda5050.models import State
 from vda5050.topics import RobotAddress, Topic
+from vda5050.versions import V3_0
 from vda5050.zones import ZoneType
 from zones.models import ZoneReach as ZoneReachRow
 from zones.models import ZoneSet
+from zones.selectors import zone_set_messages
 
 logger = logging.getLogger(__name__)
 
@@ -75,11 +79,20 @@ ZONED_MAPS_SQL = f"""
     SELECT s.map_id FROM {ZoneSet._meta.db_table} s
     WHERE s.enabled AND jsonb_path_exists(s.zones, '$[*] ? (@.zone_type == "{ZoneType.RELEASE}")')
 """
+# The fleet's enabled zone set of each map (mapId -> zoneSetId) for a robot that takes zone sets; NULL for
+# the others, which read nothing more.
+ZONE_SETS_ENABLED_SQL = f"""
+    CASE WHEN r.protocol_version = '{V3_0}' AND r.supported_zones <> '[]'::jsonb THEN (
+        SELECT COALESCE(jsonb_object_agg(z.map_id, z.name), '{{}}'::jsonb)
+        FROM {ZoneSet._meta.db_table} z WHERE z.enabled
+    ) END
+"""
 ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
         r.instant_actions_key_source = '{SettingSource.OPERATOR}',
         NOT r.compatibility_rules @> '[{{"rule": "{compat.Rule.ORDER_UPDATE_NOT_EXECUTED}"}}]'::jsonb,
-        r.next_order_header_id, r.next_instant_actions_header_id, r.outbox,
+        r.next_order_header_id, r.next_instant_actions_header_id, r.next_zone_set_header_id, r.outbox,
+        {ZONE_SETS_ENABLED_SQL}, r.zone_set_moves, r.zone_set_moved_at,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
         {robot_charge_threshold_sql("r")},
         EXISTS (
@@ -93,9 +106,6 @@ ROBOT_FOR_STEP_SQL = f"""
     FROM {Robot._meta.db_table} r LEFT JOIN {ZoneReachRow._meta.db_table} z ON z.robot = r.name
     WHERE r.name = %s FOR UPDATE OF r
 """
-MISSION_RECORD_FIELDS = tuple(f.name for f in fields(MissionRecord))
-# Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
-MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
 CURRENT_MISSIONS_SQL = f"""
     SELECT {", ".join(mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
     WHERE robot = %s AND state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
@@ -216,7 +226,9 @@ class _RobotWire:
 
 OUTBOX_SQL = f"""
     UPDATE {Robot._meta.db_table}
-    SET next_order_header_id = %s, next_instant_actions_header_id = %s, outbox = %s WHERE name = %s
+    SET next_order_header_id = %s, next_instant_actions_header_id = %s, next_zone_set_header_id = %s,
+        outbox = %s
+    WHERE name = %s
 """
 
 
@@ -262,6 +274,7 @@ def _wire_messages(
             [
                 wire.next_header_ids[Topic.ORDER],
                 wire.next_header_ids[Topic.INSTANT_ACTIONS],
+                wire.next_header_ids[Topic.ZONE_SET],
                 jsonb((unsent + new)[-OUTBOX_LIMIT:]),
                 name,
             ],
@@ -314,7 +327,10 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         # The running mission and the next queued one: a step that ends a mission usually starts the next.
         missions_cursor.execute(CURRENT_MISSIONS_SQL, [name, 2])
         row = robot_cursor.fetchone()
-        upcoming = _mission_records(missions_cursor.fetchall())
+        upcoming = mission_records(missions_cursor.fetchall())
+    # Fewer than asked: the whole queue is read, and is not read again once these end (a mission queued since
+    # is the look after the commit's, QUEUE_GREW_SQL).
+    queue_read_whole = len(upcoming) < 2
     if row is None:
         return StepEnd.SETTLED, None
     (
@@ -328,7 +344,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         routes_ahead,
         next_order_header_id,
         next_instant_actions_header_id,
+        next_zone_set_header_id,
         outbox,
+        zone_sets_enabled,
+        zone_set_moves,
+        zone_set_moved_at,
         *address,
         charge_threshold,
         has_actions,
@@ -349,6 +369,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         {
             Topic.ORDER: next_order_header_id,
             Topic.INSTANT_ACTIONS: next_instant_actions_header_id,
+            Topic.ZONE_SET: next_zone_set_header_id,
             Topic.RESPONSES: next_responses_header_id or 0,
         },
         orjson.loads(outbox) if outbox is not None else [],
@@ -367,6 +388,11 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     elif zoned_maps and _may_be_on(state, zoned_maps):
         zone_reach = ZoneReach()  # not seen by the zone plan yet: a new order releases its start alone
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []
+    if zone_sets_enabled is not None:
+        moves = ZoneSetMoves(json_column(zone_set_moves), zone_set_moved_at)
+        actions += _distribute_zone_sets(
+            name, json_column(zone_sets_enabled), moves, state, online, actions, now, outcome
+        )
     view = RobotView(
         name=name,
         lifecycle=lifecycle,
@@ -381,6 +407,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         zone_reach=zone_reach,
     )
     ended_a_mission = False
+    claimed: MissionRecord | None = None  # an unbound mission the step claimed, as stored: still unbound
     while True:
         mission = upcoming.pop(0) if upcoming else None
         result = step(
@@ -405,11 +432,13 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             view = replace(view, zone_reach=replace(zone_reach, responses_due=False))  # sent once a step
         view = replace(view, state=result.robot_state)
         if mission is not None and result.mission is not None:
-            stored = mission
+            # A claimed mission is bound with its first write (`mission_claim`).
+            bound = claimed is not None and claimed.name == mission.name
+            stored, bind_to = (claimed, name) if bound else (mission, None)
             for passed in result.passed:  # each its own write, for the change feed: a leaf seen RUNNING
-                _store_mission(stored, passed)
-                stored = passed
-            _store_mission(stored, result.mission)
+                _store_mission(stored, passed, bind_to=bind_to)
+                stored, bind_to = passed, None
+            _store_mission(stored, result.mission, bind_to=bind_to)
             if result.notify is not None:
                 outcome.notifies.append((mission.name, result.notify))
             if result.mission.done:
@@ -425,11 +454,14 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         if mission is None or not (result.mission.done or result.delete_mission):
             break
         ended_a_mission = True
-        upcoming = upcoming or _current_missions(name, count=2)
+        if not (upcoming or queue_read_whole):
+            upcoming = _current_missions(name, count=2)
         # Its next may be an unbound one, unless it ended the mission not idle (charging, in teleop).
         if not upcoming and view.state == RobotState.IDLE and _unbound_seen.is_set():
-            if mission_claim(robot=name) is not None:
-                upcoming = _current_missions(name, count=2)
+            claimed = mission_claim(robot=name)
+            if claimed is not None:  # the step runs it as bound to the robot, and binds it when it stores it
+                binding = [*claimed.assignment, binding_record(name, now)]
+                upcoming = [replace(claimed, assignment=binding, waiting_reason=None)]
             else:
                 _unbound_seen.clear()  # until the look at the queue after the commit sees some again
     if view.state != robot_state:
@@ -438,6 +470,43 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             state=view.state, state_since=changed_at, updated_at=changed_at
         )
     return StepEnd.QUEUE_RAN_DRY if mission is None and ended_a_mission else StepEnd.SETTLED, wire
+
+
+ZONE_SET_MOVES_SQL = f"""
+    UPDATE {Robot._meta.db_table} SET zone_set_moves = %s, zone_set_moved_at = %s WHERE name = %s
+"""
+
+
+def _distribute_zone_sets(
+    name: str,
+    enabled: dict[str, str],
+    moves: ZoneSetMoves,
+    state: State | None,
+    online: bool,
+    actions: list[ActionRecord],
+    now: datetime,
+    outcome: StepOutcome,
+) -> list[ActionRecord]:
+    """The robot's next zone set moves (`dispatch.zone_sets`): its `zoneSet` messages go on `outcome`, its
+    new instant actions are stored and returned (the step sends them with the others), and the moves are
+    remembered if they changed."""
+    plan = plan_zone_sets(
+        robot=name,
+        enabled=enabled,
+        moves=moves,
+        state=state,
+        online=online,
+        actions=actions,
+        now=now,
+        resend=dispatch_settings().instant_action_resend,
+    )
+    if plan.send:
+        outcome.messages.extend(Outgoing(message) for message in zone_set_messages(names=plan.send))
+    _store_actions(name, [], plan.actions)
+    if plan.moves is not moves:
+        with connection.cursor() as cursor:
+            cursor.execute(ZONE_SET_MOVES_SQL, [jsonb(dict(plan.moves.made)), plan.moves.at, name])
+    return plan.actions
 
 
 def _release(robot: str, mission: str, reason: str) -> None:
@@ -451,20 +520,7 @@ def _current_missions(robot: str, *, count: int) -> list[MissionRecord]:
     """The robot's RUNNING mission, then its queue by priority (highest first), FIFO among equals, locked."""
     with connection.cursor() as cursor:
         cursor.execute(CURRENT_MISSIONS_SQL, [robot, count])
-        return _mission_records(cursor.fetchall())
-
-
-def _mission_records(rows: list[tuple[Any, ...]]) -> list[MissionRecord]:
-    """CURRENT_MISSIONS_SQL's rows as the engine's records."""
-    return [
-        MissionRecord(
-            *(
-                orjson.loads(value) if is_json and value is not None else value
-                for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
-            )
-        )
-        for row in rows
-    ]
+        return mission_records(cursor.fetchall())
 
 
 def dispatch_settings() -> DispatchSettings:
@@ -494,13 +550,16 @@ def _live_state(name: str) -> tuple[State | None, datetime | None, dict[str, int
         return None, None, published
 
 
-def _store_mission(before: MissionRecord, after: MissionRecord) -> None:
-    """Write the fields the step changed, in one UPDATE."""
+def _store_mission(before: MissionRecord, after: MissionRecord, *, bind_to: str | None = None) -> None:
+    """Write the fields the step changed, in one UPDATE; with `bind_to`, also the binding of the unbound
+    mission `before` to that robot (`after.assignment` records it)."""
     changed = {
         name: getattr(after, name)
         for name in STEP_STATUS_FIELDS
         if getattr(before, name) != getattr(after, name)
     }
+    if bind_to is not None:
+        changed |= {"robot": bind_to, "assignment": after.assignment}
     if not changed:
         return
     values = {**changed, "updated_at": timezone.now()}

@@ -4,12 +4,15 @@ As plain SQL they skip the ORM's query compiler, which costs more than the queri
 """
 
 from collections.abc import Mapping
+from dataclasses import fields
 from datetime import UTC, datetime
 from typing import Any
 
+import orjson
 from django.db import connection
 from django.db.models import JSONField
 
+from dispatch.records import MissionRecord
 from dispatch.vocabulary import Lifecycle, MissionState, StationKind
 from kit.db import jsonb
 from missions.models import Mission
@@ -35,6 +38,25 @@ def mission_columns(names: tuple[str, ...]) -> list[str]:
     return [connection.ops.quote_name(MISSION_FIELDS[name].column) for name in names]
 
 
+# The columns of a step's mission record (`mission_records`), in the record's order.
+MISSION_RECORD_FIELDS = tuple(f.name for f in fields(MissionRecord))
+# Django leaves JSON columns undecoded for JSONField to decode; a plain read decodes them itself.
+MISSION_RECORD_JSON = tuple(isinstance(MISSION_FIELDS[name], JSONField) for name in MISSION_RECORD_FIELDS)
+
+
+def mission_records(rows: list[tuple[Any, ...]]) -> list[MissionRecord]:
+    """Rows of MISSION_RECORD_FIELDS' columns as the engine's records."""
+    return [
+        MissionRecord(
+            *(
+                orjson.loads(value) if is_json and value is not None else value
+                for value, is_json in zip(row, MISSION_RECORD_JSON, strict=True)
+            )
+        )
+        for row in rows
+    ]
+
+
 # A step may end the robot's last mission without seeing a mission created meanwhile (it read the queue
 # before the INSERT committed), while the INSERT saw the ending mission still RUNNING. The robot's queue lock
 # (an advisory lock, released when the transaction ends) settles which of the two starts it. The creation
@@ -56,16 +78,26 @@ def mission_row_delete(name: str) -> None:
         cursor.execute(MISSION_DELETE_SQL, [name])
 
 
+# A live mission that keeps its robot busy: running, or bound by assignment and not started yet. The state
+# list lets mission_queue_idx find a robot's live missions alone, not its whole history.
+_BUSY_MISSION_SQL = f"""
+    busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
+    AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
+"""
+# Every busy robot, as a set: for a read of many robots, `name IN (BUSY_ROBOTS_SQL)` is one scan of the live
+# missions hashed once, where robot_busy_sql per robot is an index probe per robot (and, planned while the
+# tables are still small, a scan of the robot's whole history or of every live mission per robot).
+BUSY_ROBOTS_SQL = f"""
+    SELECT busy.robot FROM {Mission._meta.db_table} busy WHERE busy.robot IS NOT NULL AND {_BUSY_MISSION_SQL}
+"""
+
+
 def robot_busy_sql(robot: str) -> str:
     """EXISTS: the robot (an SQL expression) has a running mission, or one assignment bound to it that has
-    not started yet. The state list lets mission_queue_idx find the robot's live missions alone, not
-    its whole history."""
+    not started yet."""
     return f"""
         EXISTS (
-            SELECT 1 FROM {Mission._meta.db_table} busy
-            WHERE busy.robot = {robot}
-              AND busy.state IN ('{MissionState.RUNNING}', '{MissionState.PENDING}')
-              AND (busy.state = '{MissionState.RUNNING}' OR busy.assignment <> '[]')
+            SELECT 1 FROM {Mission._meta.db_table} busy WHERE busy.robot = {robot} AND {_BUSY_MISSION_SQL}
         )
     """
 
@@ -105,6 +137,12 @@ def robot_charge_threshold_sql(robot: str) -> str:
 def binding_time(at: datetime) -> str:
     """A time in a mission's assignment record, as the API writes times."""
     return at.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def binding_record(robot: str, at: datetime) -> dict[str, Any]:
+    """The entry a binding adds to a mission's assignment history (as `missions.services.BIND_SQL` writes
+    it): released_at and reason stay empty until the binding is released (`_release_sql`)."""
+    return {"robot": robot, "bound_at": binding_time(at), "released_at": None, "reason": None}
 
 
 def _release_sql(condition: str) -> str:

@@ -27,13 +27,15 @@ from kit.api.rows import object_get
 from kit.db import json_column
 from missions.filters import MissionFilter
 from missions.models import Mission
-from missions.rows import factsheet_actions_sql, robot_busy_sql, robot_charge_threshold_sql
+from missions.rows import BUSY_ROBOTS_SQL, factsheet_actions_sql, robot_charge_threshold_sql
 from missions.tuning import STALLED_MISSION_SECONDS, UNNOTICED_MISSION_SECONDS
 from robots import livestate
 from robots.models import InstantAction, Robot
 from vda5050 import maps
 from vda5050.models import MapStatus
 from vda5050.state import MODES_WITHOUT_ORDERS
+from vda5050.versions import V3_0
+from zones.models import ZoneSet
 
 
 def mission_get(*, name: str, to_change: bool = False) -> Mission:
@@ -73,7 +75,8 @@ def orders_held_back() -> bool:
 
 
 def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
-    """Robots with something that waits on time: a timeout, a deadline, an unacknowledged message."""
+    """Robots with something that waits on time: a timeout, a deadline, an unacknowledged message, zone
+    sets to distribute."""
     now = now or timezone.now()
     order_resend = now - timedelta(seconds=settings.DISPATCH_ORDER_RESEND_SECONDS)
     action_resend = now - timedelta(seconds=settings.DISPATCH_INSTANT_ACTION_RESEND_SECONDS)
@@ -102,7 +105,36 @@ def robots_due_for_step(*, now: datetime | None = None) -> list[str]:
     names.update(pending.values_list("robot", flat=True))
     names.update(unnoticed.values_list("robot", flat=True))
     names.update(actions.values_list("robot_id", flat=True))
+    with connection.cursor() as cursor:
+        cursor.execute(ZONE_SETS_DUE_SQL, [action_resend])
+        names.update(name for (name,) in cursor.fetchall())
     return sorted(names)
+
+
+# Online robots that take zone sets, whose reported zone sets are not yet the fleet's (one of their maps'
+# enabled sets not ENABLED, or a set held that the fleet has not enabled), and whose last zone set move
+# (`dispatch.zone_sets`) is older than the instant actions' resend period, or was never made.
+ZONE_SETS_DUE_SQL = f"""
+    SELECT r.name FROM {Robot._meta.db_table} r
+    WHERE r.online AND r.protocol_version = '{V3_0}' AND r.supported_zones <> '[]'::jsonb
+      AND (r.zone_set_moved_at IS NULL OR r.zone_set_moved_at <= %s)
+      AND (
+        EXISTS (
+            SELECT 1 FROM {ZoneSet._meta.db_table} z
+            WHERE z.enabled
+              AND (z.map_id = r.pose_map_id
+                   OR r.maps @> jsonb_build_array(jsonb_build_object('map_id', z.map_id)))
+              AND NOT r.zone_sets @> jsonb_build_array(
+                  jsonb_build_object('zone_set_id', z.name, 'zone_set_status', '{MapStatus.ENABLED}'))
+        )
+        OR EXISTS (
+            SELECT 1 FROM jsonb_array_elements(r.zone_sets) held
+            WHERE NOT EXISTS (
+                SELECT 1 FROM {ZoneSet._meta.db_table} z WHERE z.enabled AND z.name = held->>'zone_set_id'
+            )
+        )
+      )
+"""
 
 
 def robots_stalled(*, now: datetime | None = None) -> list[str]:
@@ -203,18 +235,23 @@ _MAY_WORK_SQL = f"""
         WHERE e.error->>'level' = 'FATAL' AND e.error->'references' = '{{}}'::jsonb
     )
 """
-_BUSY_SQL = robot_busy_sql("r.name")
 # Its battery lets it take a mission: above its critical level, and not due to charge (at or below the
 # level at which it charges first, `robot_charge_threshold_sql`): such a robot falls idle and the station
 # plan sends it to charge, instead of its next mission taking it down to its critical level.
 _BATTERY_OK_SQL = f"r.battery_level >= r.battery_critical_level AND {robot_charge_threshold_sql('r')} IS NULL"
-# Robots with what makes them free or not, and their own queue's head (`QueueHead`); a robot's rows are
-# found by mission_queue_idx. Followed by a WHERE clause: every robot, the free ones, or one.
+# A robot's abilities, place and whether it may take a mission (`_candidate_robot`'s first columns).
+_ROBOT_COLUMNS_SQL = f"""
+    r.name, r.labels, r.agv_class, {factsheet_actions_sql("r")},
+    r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
+    r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
+    {_BATTERY_OK_SQL}, r.maps
+"""
+# Robots with what makes them free or not, and their own queue's head (`QueueHead`, found by
+# mission_queue_idx). Whether they are busy is one look at the live missions for them all (`BUSY_ROBOTS_SQL`).
+# Followed by a WHERE clause: every robot, or the free ones.
 CANDIDATE_ROBOTS_SQL = f"""
-    SELECT r.name, r.labels, r.agv_class, {factsheet_actions_sql("r")},
-        r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
-        r.online AND r.lifecycle = '{Lifecycle.ALIVE}', {_MAY_WORK_SQL},
-        {_BATTERY_OK_SQL}, r.maps, {_BUSY_SQL},
+    WITH busy AS MATERIALIZED ({BUSY_ROBOTS_SQL})
+    SELECT {_ROBOT_COLUMNS_SQL}, r.name IN (SELECT robot FROM busy),
         CASE WHEN r.state = '{RobotState.IDLE}' THEN r.state_since END,
         head.priority, head.created_at
     FROM {Robot._meta.db_table} r
@@ -225,10 +262,15 @@ CANDIDATE_ROBOTS_SQL = f"""
     ) AS head ON true
 """
 FREE_ROBOTS_SQL = f"""{CANDIDATE_ROBOTS_SQL}
-    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND NOT {_BUSY_SQL}
+    WHERE {_MAY_WORK_SQL} AND {_BATTERY_OK_SQL} AND r.name NOT IN (SELECT robot FROM busy)
 """
-# One robot, locked: the robot that claims (its step holds the lock already).
-CANDIDATE_ROBOT_SQL = f"{CANDIDATE_ROBOTS_SQL} WHERE r.name = %s FOR UPDATE OF r"
+# The robot that claims (`missions.services.mission_claim`): its step holds its lock and has just read its
+# queue empty, so it is not busy and has no queue head of its own; how long it has been idle only breaks
+# ties between robots, and it is alone.
+CLAIMANT_SQL = f"""
+    SELECT {_ROBOT_COLUMNS_SQL}, false, NULL::timestamptz, NULL::integer, NULL::timestamptz
+    FROM {Robot._meta.db_table} r WHERE r.name = %s
+"""
 
 
 def unbound_missions_wait() -> bool:
@@ -259,11 +301,12 @@ def assignment_inputs(*, free_only: bool) -> AssignmentInputs:
 
 def claim_inputs(*, robot: str, created_before: datetime, limit: int) -> AssignmentInputs:
     """The robot `robot` and the first `limit` unbound missions created before `created_before`, highest
-    priority and oldest first: what a robot that just fell free chooses its next mission from."""
+    priority and oldest first: what a robot that just fell free (its queue empty) chooses its next mission
+    from."""
     missions, waiting_reasons = _unbound_missions(created_before=created_before, limit=limit)
     if not missions:  # the pool is empty (a fleet of named missions): the robot is not read
         return AssignmentInputs([], [], {})
-    robots = _candidate_robots(CANDIDATE_ROBOT_SQL, [robot])
+    robots = _candidate_robots(CLAIMANT_SQL, [robot])
     return AssignmentInputs(missions if robots else [], robots, waiting_reasons)
 
 

@@ -21,6 +21,7 @@ from access.models import WriteRecord
 from access.services import write_record, writes_via_now
 from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold, choices_of
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
+from dispatch.records import MissionRecord
 from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
@@ -30,16 +31,18 @@ from missions.choices import DONE_STATES, FailureCategory, Lifecycle, MissionSta
 from missions.models import Mission
 from missions.rows import (
     MISSION_FIELDS,
+    MISSION_RECORD_FIELDS,
     RELEASE_ORPHANS_SQL,
     ROBOT_DELETED,
     binding_time,
     mission_columns,
     mission_db_values,
+    mission_records,
     mission_row_delete,
     robot_busy_sql,
 )
 from missions.selectors import assignment_inputs, claim_inputs
-from missions.tuning import CLAIM_PAGE
+from missions.tuning import CLAIM_PAGE, CLAIM_TRIES
 from robots.models import Robot
 
 logger = logging.getLogger(__name__)
@@ -345,38 +348,31 @@ LOCK_UNBOUND_SQL = f"""
 """
 
 
-def _bind_sql(bindings: str) -> str:
-    """Bind each mission of `bindings` (rows of name, robot) that is still unbound to its robot if that
-    robot is still free, recording the binding; parameters: updated_at and bound_at, then `bindings`' own.
-    Its snapshot is taken after the caller's locks: a binding another transaction committed before the
-    robot was locked is seen, and the robot is not bound twice. `robot IS NULL` again: a mission is never
-    bound twice."""
-    return f"""
-        UPDATE {Mission._meta.db_table} AS m
-        SET robot = b.robot, waiting_reason = NULL, updated_at = %s,
-            assignment = m.assignment || jsonb_build_array(
-                jsonb_build_object(
-                    'robot', b.robot, 'bound_at', %s::text, 'released_at', NULL, 'reason', NULL
-                )
-            )
-        FROM {bindings} AS b(name, robot)
-        WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
-          AND NOT {robot_busy_sql("b.robot")}
-        RETURNING m.name, m.robot
-    """
-
-
-BIND_SQL = _bind_sql("unnest(%s::varchar[], %s::varchar[])")
-# A claim binds its robot's best choice that no other claim holds (robots falling free together take
-# different missions). Parameters: the robot and its choices twice (the CTE's), updated_at, bound_at.
+# Bind each mission of the pairs (name, robot) that is still unbound to its robot if that robot is still
+# free, recording the binding (as `missions.rows.binding_record`). Parameters: updated_at and bound_at, then
+# the missions and their robots. Its snapshot is taken after the caller's locks: a binding another
+# transaction committed before the robot was locked is seen, and the robot is not bound twice. `robot IS
+# NULL` again: a mission is never bound twice.
+BIND_SQL = f"""
+    UPDATE {Mission._meta.db_table} AS m
+    SET robot = b.robot, waiting_reason = NULL, updated_at = %s,
+        assignment = m.assignment || jsonb_build_array(
+            jsonb_build_object('robot', b.robot, 'bound_at', %s::text, 'released_at', NULL, 'reason', NULL)
+        )
+    FROM unnest(%s::varchar[], %s::varchar[]) AS b(name, robot)
+    WHERE m.name = b.name AND m.robot IS NULL AND m.state = '{MissionState.PENDING}'
+      AND NOT {robot_busy_sql("b.robot")}
+    RETURNING m.name, m.robot
+"""
+# A claim locks its robot's best choice that no other claim or run holds (robots falling free together take
+# different missions), read as the step's record: the step binds it in the write that starts it. The
+# robot's own queue is not looked at again: the step holds the robot's lock and has just read it empty.
+# Parameters: the choices twice.
 CLAIM_SQL = f"""
-    WITH chosen AS (
-        SELECT name, %s::varchar FROM {Mission._meta.db_table}
-        WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
-          AND lifecycle = '{Lifecycle.ALIVE}'
-        ORDER BY array_position(%s::varchar[], name) LIMIT 1 FOR UPDATE SKIP LOCKED
-    )
-    {_bind_sql("chosen")}
+    SELECT {", ".join(mission_columns(MISSION_RECORD_FIELDS))} FROM {Mission._meta.db_table}
+    WHERE name = ANY(%s) AND robot IS NULL AND state = '{MissionState.PENDING}'
+      AND lifecycle = '{Lifecycle.ALIVE}'
+    ORDER BY array_position(%s::varchar[], name) LIMIT 1 FOR UPDATE SKIP LOCKED
 """
 # An unbound mission still queued at its deadline never starts, as one of a robot's queue (the step's
 # rule, `dispatch.step`): no robot's step sees it, so assignment's run ends it.
@@ -448,33 +444,40 @@ def missions_assign(*, with_reasons: bool = True) -> AssignmentRun:
     return AssignmentRun(bound, idle_robots=free_robots - len(bound))
 
 
-def mission_claim(*, robot: str) -> str | None:
-    """The robot, just fallen free, takes its next mission from the unbound ones at once, by assignment's
+def mission_claim(*, robot: str) -> MissionRecord | None:
+    """The robot, just fallen free, chooses its next mission from the unbound ones at once, by assignment's
     rules for it alone (the oldest of the highest priority it can do, unless its own queue comes first);
-    returns the mission bound, if any. In the caller's transaction: the step's that ended the robot's last
-    mission, which then starts this one (nothing else is asked to step it).
+    returns that mission as it is stored, still unbound and locked until the caller's transaction ends: the
+    step that ended the robot's last mission, which binds and starts it in one write (one row version and
+    one change-feed row for both; nothing else is asked to step the robot).
 
     In a busy fleet robots fall free one at a time while missions wait: the robot is then the only free
     one, and binding it in its own step spares a run, a step and a transaction (issue 41's steady state).
-    Robots that fall free together take different missions (each its best one no other claim holds).
-    Missions younger than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them for a
-    burst, and so is a robot that none of the `CLAIM_PAGE` first missions suits (the run reads them all).
+    Robots that fall free together take different missions (each its best one no other claim holds); one
+    whose choices all went to others meanwhile reads the pool again, once (`CLAIM_TRIES`): a robot that
+    claims nothing falls idle and asks for an assignment run, which reads every free robot and the whole
+    pool. Missions younger than `ASSIGNMENT_QUIET_SECONDS` are left to the run, which may be holding them
+    for a burst, and so is a robot that none of the `CLAIM_PAGE` first missions suits (the run reads them
+    all).
     """
-    now = timezone.now()
-    inputs = claim_inputs(
-        robot=robot,
-        created_before=now - timedelta(seconds=settings.ASSIGNMENT_QUIET_SECONDS),
-        limit=CLAIM_PAGE,
-    )
-    if not inputs.missions:
-        return None
-    choices = choices_of(inputs.robots[0], inputs.missions)
-    if not choices:
-        return None
-    with connection.cursor() as cursor:
-        cursor.execute(CLAIM_SQL, [robot, choices, choices, now, binding_time(now)])
-        row = cursor.fetchone()
-    return row[0] if row else None
+    for _ in range(CLAIM_TRIES):
+        now = timezone.now()
+        inputs = claim_inputs(
+            robot=robot,
+            created_before=now - timedelta(seconds=settings.ASSIGNMENT_QUIET_SECONDS),
+            limit=CLAIM_PAGE,
+        )
+        if not inputs.missions:
+            return None
+        choices = choices_of(inputs.robots[0], inputs.missions)
+        if not choices:
+            return None
+        with connection.cursor() as cursor:
+            cursor.execute(CLAIM_SQL, [choices, choices])
+            rows = cursor.fetchall()
+        if rows:
+            return mission_records(rows)[0]
+    return None
 
 
 def _bind(bindings: dict[str, str], now: datetime) -> dict[str, str]:

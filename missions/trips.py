@@ -31,7 +31,7 @@ from missions.tuning import TRIP_RETRY_MAX_SECONDS, TRIP_RETRY_SECONDS
 from robots.models import InstantAction, Robot
 from robots.services import instant_action
 from stations.models import Station
-from vda5050.models import ActionType
+from vda5050.models import ActionStatus, ActionType
 from vda5050.orders import DEFAULT_ALLOWED_DEVIATION_THETA, DEFAULT_ALLOWED_DEVIATION_XY
 
 # Who the write records of trips name.
@@ -52,7 +52,9 @@ _MISSIONS = Mission._meta.db_table
 # Every robot with what the plan needs: idle (no running mission but a parking trip, not in teleop), its
 # latest charging trip's state, its failed charging trips since its last charged one (the backoff), since
 # when it idles (its last mission's end, else its creation; none while it has a queue), and whether a
-# client's mission started since its latest parking trip ended (it left, however short the mission).
+# client's mission started since its latest parking trip ended (it left, however short the mission), and
+# whether its latest stopCharging is not reported FINISHED (pending: not taken back at a charger, not told
+# twice; refused: it charges on by itself).
 STATION_ROBOTS_SQL = f"""
     SELECT r.name, r.agv_class, r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
         r.online AND r.lifecycle = '{Lifecycle.ALIVE}',
@@ -73,7 +75,13 @@ STATION_ROBOTS_SQL = f"""
             SELECT 1 FROM {_MISSIONS} c WHERE c.robot = r.name AND c.purpose IS NULL
               AND c.start_timestamp > park.end_timestamp
         ),
-        r.charge_requested, r.charging_waiting_reason
+        r.charge_requested,
+        COALESCE((
+            SELECT a.status IS DISTINCT FROM '{ActionStatus.FINISHED}' FROM {InstantAction._meta.db_table} a
+            WHERE a.robot_id = r.name AND a.action_type = '{ActionType.STOP_CHARGING}'
+            ORDER BY a.created_at DESC LIMIT 1
+        ), false),
+        r.charging_waiting_reason
     FROM {Robot._meta.db_table} r
     LEFT JOIN LATERAL (
         SELECT m.state, m.queue_position FROM {_MISSIONS} m
@@ -276,6 +284,7 @@ def _station_robot(
     idle_since: datetime | None,
     left_parking: bool,
     charge_requested: bool,
+    stopping: bool,
 ) -> StationRobot:
     retry_at = None
     if failures and last_failure is not None:
@@ -295,4 +304,5 @@ def _station_robot(
         retry_at=retry_at,
         charge_now=charge_requested,
         left_parking=left_parking,
+        stopping=stopping,
     )

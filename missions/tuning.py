@@ -18,6 +18,10 @@ MAX_NOTIFY_TIMEOUT = 86_400
 # A robot that falls free chooses its next mission among this many unbound ones (highest priority, oldest
 # first: `missions.services.mission_claim`); one that suits none of them waits for the assignment run.
 CLAIM_PAGE = 16
+# Reads of that page per claim: robots falling free together take the same page's missions one by one, and
+# a claim whose choices all went to others (2-3 % of claims at N=1000, bench/README.md "Assignment") reads it
+# again rather than leave its robot idle for an assignment run.
+CLAIM_TRIES = 2
 
 # A charging trip that failed is tried again after this long, doubling per failure since the robot last
 # charged, up to the maximum: a robot that cannot reach its charger does not loop on it.

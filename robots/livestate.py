@@ -246,7 +246,7 @@ def step_marker_key(name: str) -> str:
 
 
 # The topics on which the server sends robots messages (vda5050.topics.Topic values).
-PUBLISHED_TOPICS = ("order", "instantActions", "responses")
+PUBLISHED_TOPICS = ("order", "instantActions", "zoneSet", "responses")
 
 
 def _published_field(topic: str) -> str:

@@ -64,9 +64,14 @@ class Robot(models.Model):
     # which the robot's steps committed.
     next_order_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
     next_instant_actions_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
+    next_zone_set_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
     # The latest messages sent to the robot (topic, headerId, payload), kept until a later step knows they
     # went out: one killed before publishing leaves no headerId unsent (missions.robot_step._wire_messages).
     outbox = models.JSONField(null=True, blank=True, editable=False)
+    # The zone set distribution's moves made and not yet seen done (zoneSetId -> zoneSet, enableZoneSet or
+    # deleteZoneSet), and when the last was made (`dispatch.zone_sets`): written only when they change.
+    zone_set_moves = models.JSONField(default=dict, db_default={}, blank=True, editable=False)
+    zone_set_moved_at = models.DateTimeField(null=True, blank=True, editable=False)
 
     # --- status ---
     state = models.CharField(max_length=20, choices=RobotState.choices, default=RobotState.IDLE)
@@ -87,6 +92,12 @@ class Robot(models.Model):
     hardware_version = models.JSONField(default=dict, blank=True)
     agv_class = models.CharField(max_length=20, choices=AgvClass.choices, default=AgvClass.CARRIER)
     speed_max = models.FloatField(default=-1.0)
+    supported_zones = models.JSONField(
+        default=list,
+        blank=True,
+        help_text="The zone types the robot's factsheet lists (VDA 5050 3.0 supportedZones): it gets the "
+        "zone sets of its maps.",
+    )
     factsheet = models.JSONField(
         null=True, blank=True, help_text="The robot's last VDA 5050 factsheet, whole."
     )

@@ -14,6 +14,7 @@ from typing import Any
 from vda5050.maps import MAP_DOWNLOAD_LINK, MAP_HASH, MAP_ID, MAP_VERSION
 from vda5050.models import Action, ActionScope, ActionState, ActionStatus, ActionType, ValueDataType
 from vda5050.state import FINAL_ACTION_STATUSES
+from vda5050.zones import ZONE_SET_ID
 
 LOAD_MAP_SECONDS = 1.0
 DOWNLOAD_MAP_SECONDS = 1.0  # a downloadMap is RUNNING this long, then the map is there, DISABLED
@@ -56,6 +57,10 @@ MAP_PARAMETERS = (
     ParameterSpec(MAP_ID, ValueDataType.STRING, "the map"),
     ParameterSpec(MAP_VERSION, ValueDataType.STRING, "its version"),
 )
+
+# 3.0's zone set actions, only 3.0 robots know them (the factsheet of a 2.x robot lists none).
+ZONE_SET_ACTIONS = frozenset({ActionType.ENABLE_ZONE_SET, ActionType.DELETE_ZONE_SET})
+ZONE_SET_PARAMETERS = (ParameterSpec(ZONE_SET_ID, ValueDataType.STRING, "the zone set"),)
 
 ACTION_SPECS: tuple[ActionSpec, ...] = (
     ActionSpec(
@@ -120,6 +125,15 @@ ACTION_SPECS: tuple[ActionSpec, ...] = (
         "Deletes a map version the robot has.",
         INSTANT_SCOPE,
         MAP_PARAMETERS,
+    ),
+    ActionSpec(
+        ActionType.ENABLE_ZONE_SET,
+        "Enables a zone set the robot holds (sent on the zoneSet topic); its map's other sets are disabled.",
+        INSTANT_SCOPE,
+        ZONE_SET_PARAMETERS,
+    ),
+    ActionSpec(
+        ActionType.DELETE_ZONE_SET, "Deletes a zone set the robot holds.", INSTANT_SCOPE, ZONE_SET_PARAMETERS
     ),
     ActionSpec(
         ActionType.INIT_POSITION,

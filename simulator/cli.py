@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from simulator.config import (
+    DEFAULT_BATTERY,
     DEFAULT_BATTERY_DRAIN,
     DEFAULT_CHARGE_RATE,
     DEFAULT_INTERFACE_NAME,
@@ -76,6 +77,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--speed", type=float, default=1.0, help="m/s (and rad/s turning); 0 = --instant")
     parser.add_argument("--tick_period", type=float, default=0.25, help="s between motion steps")
     parser.add_argument("--instant", action="store_true", help="complete every order at once (benchmarks)")
+    parser.add_argument(
+        "--battery",
+        type=float,
+        default=DEFAULT_BATTERY,
+        help="percent of battery at start, of robots whose spec gives none",
+    )
     parser.add_argument(
         "--battery_drain",
         type=float,
@@ -191,6 +198,8 @@ def settings_from(args: argparse.Namespace) -> SimulationSettings:
         raise ValueError("--speed, --visualization_period, --battery_drain, --charge_rate must be >= 0")
     if args.tick_period <= 0 or args.state_period <= 0:
         raise ValueError("--tick_period, --state_period must be > 0")
+    if not 0 <= args.battery <= 100:
+        raise ValueError("--battery must be a percentage")
     return SimulationSettings(
         speed=args.speed,
         tick_period=args.tick_period,
@@ -199,6 +208,7 @@ def settings_from(args: argparse.Namespace) -> SimulationSettings:
         fail_as_warning=args.fail_as_warning,
         version=args.vda_version,
         instant=args.instant,
+        battery=args.battery,
         battery_drain=args.battery_drain,
         charge_rate=args.charge_rate,
     )

@@ -12,8 +12,8 @@ DEFAULT_MAP_ID = "map"
 DEFAULT_BATTERY = 20.0
 # Percent per metre driven: none by default. Robots drive to a charger by themselves only where one exists
 # (README, "Stations: charging and parking"), so without one a battery that drained would leave a simulated
-# fleet below its critical level, taking no missions, within minutes; 0.5 takes a full battery to a fifth in
-# 160 m, under three minutes at 1 m/s.
+# fleet below its critical level, taking no missions; `make run` (deploy/Procfile) starts its robots at 80 %
+# draining 0.1 % per metre, some 500 m of missions before a minimum of 30 %.
 DEFAULT_BATTERY_DRAIN = 0.0
 # Percent per second while charging: 20 % to 100 % in 40 s.
 DEFAULT_CHARGE_RATE = 2.0
@@ -64,7 +64,7 @@ class RobotConfig:
     theta: float = 0.0
     map_id: str = DEFAULT_MAP_ID
     failure_period: int = 0
-    battery: float = DEFAULT_BATTERY
+    battery: float | None = None  # percent at start; None: the simulation's
     manufacturer: str = DEFAULT_MANUFACTURER
     serial_number: str = ""
     robot_type: RobotType = RobotType.CARRIER
@@ -72,6 +72,10 @@ class RobotConfig:
     stack: Stack = Stack.STRICT
     battery_drain: float | None = None  # percent per metre driven; None: the simulation's
     charge_rate: float | None = None  # percent per second charging; 0: cannot charge; None: the simulation's
+
+    def battery_at_start(self, settings: SimulationSettings) -> float:
+        """Its battery's charge at start (percent)."""
+        return settings.battery if self.battery is None else self.battery
 
     def battery_rates(self, settings: SimulationSettings) -> tuple[float, float]:
         """Its battery drain (percent per metre) and charge rate (percent per second; 0: cannot charge)."""
@@ -95,6 +99,7 @@ class SimulationSettings:
     fail_as_warning: bool = False
     version: str = "2.0.0"
     instant: bool = False  # every order completes at once; implied by speed 0
+    battery: float = DEFAULT_BATTERY  # percent at start, of robots whose spec gives none
     battery_drain: float = DEFAULT_BATTERY_DRAIN  # of robots whose spec gives none
     charge_rate: float = DEFAULT_CHARGE_RATE  # of robots whose spec gives none
 
@@ -163,7 +168,7 @@ def parse_robot_spec(spec: str) -> RobotConfig:
         theta=_finite(theta, "theta", spec) if theta else 0.0,
         map_id=map_id or DEFAULT_MAP_ID,
         failure_period=int(failure_period) if failure_period else 0,
-        battery=_finite(battery, "battery", spec) if battery else DEFAULT_BATTERY,
+        battery=_finite(battery, "battery", spec) if battery else None,
         manufacturer=manufacturer or DEFAULT_MANUFACTURER,
         serial_number=serial_number,
         robot_type=RobotType(robot_type.upper()) if robot_type else RobotType.CARRIER,
@@ -176,7 +181,7 @@ def parse_robot_spec(spec: str) -> RobotConfig:
         raise ValueError(f"robot spec {spec!r}: vda_version must be one of {', '.join(SUPPORTED_VERSIONS)}")
     if config.failure_period < 0:
         raise ValueError(f"robot spec {spec!r}: failure_period must be >= 0")
-    if not 0 <= config.battery <= 100:
+    if config.battery is not None and not 0 <= config.battery <= 100:
         raise ValueError(f"robot spec {spec!r}: battery must be a percentage")
     if any(rate is not None and rate < 0 for rate in (config.battery_drain, config.charge_rate)):
         raise ValueError(f"robot spec {spec!r}: battery_drain and charge_rate must be >= 0")

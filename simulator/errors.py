@@ -25,6 +25,9 @@ ACTION_ERROR = "actionError"
 # 2.1 names no error types for maps (vendor-specific); 3.0 does (ERROR_TYPES_3).
 DUPLICATE_MAP = "duplicateMap"
 UNKNOWN_MAP = "unknownMap"
+# 3.0 zone sets (only 3.0 robots hold them): the predefined duplicate, and our own unknown set.
+DUPLICATE_ZONE_SET = "DUPLICATE_ZONE_SET"
+UNKNOWN_ZONE_SET = "unknownZoneSet"
 SIMULATED_FAILURE = "simulatedFailure"
 # 3.0 renamed the predefined ones (UPPER_SNAKE); a 3.0 robot reports those names.
 ERROR_TYPES_3 = {

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from simulator.actions import ACTION_SPECS, CHARGING_ACTIONS
+from simulator.actions import ACTION_SPECS, CHARGING_ACTIONS, ZONE_SET_ACTIONS
 from simulator.config import RobotConfig, RobotType, SimulationSettings
 from vda5050.models import (
     AgvAction,
@@ -27,6 +27,7 @@ from vda5050.models import (
     VersionInfo,
 )
 from vda5050.versions import MAJOR_3, V2_0, major_of
+from vda5050.zones import ZoneType
 
 SERIES_NAME = "Mission Dispatch simulated robot"
 PLACEHOLDER_CLASS = AgvClass.CARRIER  # stands in for classes the 2.x enum lacks, patched on the wire
@@ -37,6 +38,7 @@ SUPPORTED_OPTIONAL_PARAMETERS = (
     "order.edges.maxSpeed",
 )
 SIMULATOR_SOFTWARE_VERSION = "1.0.0"
+SUPPORTED_ZONES = [ZoneType.RELEASE.value]  # 3.0: the zone type the robot heeds (simulator.zones)
 
 
 def factsheet_content(config: RobotConfig, settings: SimulationSettings, version: str) -> FactsheetContent:
@@ -62,6 +64,7 @@ def factsheet_content(config: RobotConfig, settings: SimulationSettings, version
             max_load_mass=100.0,
             localization_types=[LocalizationType.NATURAL],
             navigation_types=[NavigationType.AUTONOMOUS],
+            supported_zones=SUPPORTED_ZONES if is_3 else None,
         ),
         physical_parameters=PhysicalParameters(
             speed_min=0.0,
@@ -107,7 +110,8 @@ def factsheet_content(config: RobotConfig, settings: SimulationSettings, version
                     cancel_allowed=True if is_3 else None,
                 )
                 for spec in ACTION_SPECS
-                if charges or spec.action_type not in CHARGING_ACTIONS
+                if (charges or spec.action_type not in CHARGING_ACTIONS)
+                and (is_3 or spec.action_type not in ZONE_SET_ACTIONS)
             ],
         ),
         agv_geometry=AgvGeometry(),

@@ -28,6 +28,7 @@ from simulator.maps import RobotMaps
 from simulator.motion import Drive, VehiclePose, normalize_angle
 from simulator.orders import CurrentOrder
 from simulator.outbox import Outbox
+from simulator.zones import RobotZones
 from vda5050.codec import LEGACY_INSTANT_ACTIONS_KEY, parse_instant_actions
 from vda5050.errors import ProtocolError
 from vda5050.models import Action, ActionType
@@ -61,6 +62,7 @@ class InstantActionHandler:
     has_maps: bool
     order: CurrentOrder
     maps: RobotMaps
+    zones: RobotZones
     drive: Drive
     errors: ErrorReport
     outbox: Outbox
@@ -102,6 +104,8 @@ class InstantActionHandler:
                 self._init_position(run)
             case ActionType.DOWNLOAD_MAP | ActionType.ENABLE_MAP | ActionType.DELETE_MAP if self.has_maps:
                 self.maps.act(run, now)
+            case ActionType.ENABLE_ZONE_SET | ActionType.DELETE_ZONE_SET if self.is_3:
+                self.zones.act(run)
             case ActionType.START_CHARGING if self.battery.can_charge:
                 self.battery.start_charging(now)
                 run.finish("charging" if self.battery.charging else "full")

@@ -36,6 +36,7 @@ from simulator.maps import RobotMaps
 from simulator.motion import Drive, VehiclePose, jump_to, normalize_angle, step_towards, target_of
 from simulator.orders import CurrentOrder
 from simulator.outbox import Outbox, Publication
+from simulator.zones import RobotZones
 from vda5050.maps import has_maps
 from vda5050.models import (
     ActionStatus,
@@ -88,14 +89,18 @@ class SimulatedRobot:
             config.map_id, has_maps=self.has_maps, settings=settings, errors=errors, outbox=outbox
         )
         order = CurrentOrder(outbox)
+        zones = RobotZones(serial=config.serial, errors=errors, outbox=outbox)
         drain, charge_rate = config.battery_rates(settings)
-        battery = Battery(charge=config.battery, drain_per_metre=drain, charge_rate=charge_rate)
+        battery = Battery(
+            charge=config.battery_at_start(settings), drain_per_metre=drain, charge_rate=charge_rate
+        )
         self._outbox = outbox
         self._battery = battery
         self._errors = errors
         self._drive = drive
         self._maps = maps
         self._order = order
+        self._zones = zones
         self._loads: list[Load] = []
         self._acceptance = OrderAcceptance(
             config, settings, self.address, order=order, maps=maps, drive=drive, errors=errors
@@ -107,6 +112,7 @@ class SimulatedRobot:
             has_maps=self.has_maps,
             order=order,
             maps=maps,
+            zones=zones,
             drive=drive,
             errors=errors,
             outbox=outbox,
@@ -119,7 +125,8 @@ class SimulatedRobot:
         return self._outbox.topic(kind)
 
     def subscriptions(self) -> list[str]:
-        return [self.topic(Topic.ORDER), self.topic(Topic.INSTANT_ACTIONS)]
+        zones = (Topic.ZONE_SET, Topic.RESPONSES) if self.is_3 else ()
+        return [self.topic(kind) for kind in (Topic.ORDER, Topic.INSTANT_ACTIONS, *zones)]
 
     def last_will(self, now: float) -> Publication:
         """Registered with the broker at connect time, sent by it if the connection breaks."""
@@ -139,6 +146,10 @@ class SimulatedRobot:
             self._acceptance.receive(payload)
         elif kind == Topic.INSTANT_ACTIONS:
             self._instant_actions.receive(payload, now)
+        elif kind == Topic.ZONE_SET and self.is_3:
+            self._zones.receive_zone_set(payload)
+        elif kind == Topic.RESPONSES and self.is_3:
+            self._zones.receive_responses(payload)
         else:
             return []
         self._progress(now, may_move=self.settings.completes_instantly)
@@ -163,6 +174,8 @@ class SimulatedRobot:
             order_id=order.order_id,
             order_update_id=order.order_update_id,
             zone_set_id=order.zone_set_id,
+            zone_sets=self._zones.report() if self.is_3 else None,
+            zone_requests=self._zones.requests() if self.is_3 else None,
             last_node_id=order.last_node_id,
             last_node_sequence_id=order.last_node_sequence_id,
             driving=drive.driving,
@@ -221,6 +234,9 @@ class SimulatedRobot:
                 continue
             if drive.teleop or not may_move or (moved and not instant):
                 break
+            here = (drive.pose.x, drive.pose.y)
+            if not self._zones.may_drive(self._maps.map_id, here, (target.x, target.y)):
+                break  # at the last node before a RELEASE zone it has no grant for
             if self._battery.charging:  # driving off the charger
                 self._battery.stop_charging(now)
             drive.pose = (
@@ -231,6 +247,7 @@ class SimulatedRobot:
             moved = True
         if may_move:  # a message between two ticks neither starts nor stops driving
             drive.set_motion(start, driving=moved and not instant)
+        self._zones.moved((drive.pose.x, drive.pose.y), route_left=bool(order.nodes))
         if moved:
             self._battery.drive(math.hypot(drive.pose.x - start.x, drive.pose.y - start.y))
 
@@ -311,4 +328,3 @@ class SimulatedRobot:
         return AgvPosition(
             x=pose.x, y=pose.y, theta=pose.theta, map_id=self._maps.map_id, position_initialized=True
         )
-

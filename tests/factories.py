@@ -15,6 +15,8 @@ from zones.models import ZoneSet
 
 # Who the tests' direct service calls are recorded as (WriteRecord.actor).
 TEST_ACTOR = "test"
+# A factsheet that lists startCharging: a robot the station plan may send to charge (issue 44).
+CAN_CHARGE = {"protocolFeatures": {"agvActions": [{"actionType": "startCharging"}]}}
 
 
 class RobotFactory(factory.django.DjangoModelFactory):

@@ -32,6 +32,8 @@ from vda5050.models import (
     StateContent,
     Visualization,
     VisualizationContent,
+    ZoneSetContent,
+    ZoneSetMessage,
 )
 from vda5050.topics import VERSION_PATTERN, RobotAddress, Topic
 from vda5050.versions import from_wire, to_wire
@@ -49,8 +51,10 @@ __all__ = [
     "parse_factsheet",
     "parse_instant_actions",
     "parse_order",
+    "parse_responses",
     "parse_state",
     "parse_visualization",
+    "parse_zone_set",
     "utc_timestamp",
 ]
 
@@ -71,6 +75,8 @@ MESSAGE_TYPES: dict[Topic, type[Message]] = {
     Topic.CONNECTION: Connection,
     Topic.VISUALIZATION: Visualization,
     Topic.FACTSHEET: Factsheet,
+    Topic.ZONE_SET: ZoneSetMessage,
+    Topic.RESPONSES: Responses,
 }
 # Checked in order with isinstance, so a full message (a Content subclass) is accepted too.
 CONTENT_MESSAGE_TYPES: tuple[tuple[type[Content], type[Message], Topic], ...] = (
@@ -80,6 +86,7 @@ CONTENT_MESSAGE_TYPES: tuple[tuple[type[Content], type[Message], Topic], ...] = 
     (ConnectionContent, Connection, Topic.CONNECTION),
     (VisualizationContent, Visualization, Topic.VISUALIZATION),
     (FactsheetContent, Factsheet, Topic.FACTSHEET),
+    (ZoneSetContent, ZoneSetMessage, Topic.ZONE_SET),
     (ResponsesContent, Responses, Topic.RESPONSES),
 )
 
@@ -137,6 +144,14 @@ def parse_visualization(payload: bytes | str) -> Visualization:
 
 def parse_factsheet(payload: bytes | str) -> Factsheet:
     return _validate(Factsheet, _load(Topic.FACTSHEET, payload))
+
+
+def parse_zone_set(payload: bytes | str) -> ZoneSetMessage:
+    return _validate(ZoneSetMessage, _load(Topic.ZONE_SET, payload))
+
+
+def parse_responses(payload: bytes | str) -> Responses:
+    return _validate(Responses, _load(Topic.RESPONSES, payload))
 
 
 def parse(topic: Topic, payload: bytes | str) -> Message:

@@ -196,6 +196,10 @@ class ActionType(StrEnum):
     CANCEL_ORDER = "cancelOrder"
     START_TELEOP = "startTeleop"
     STOP_TELEOP = "stopTeleop"
+    # 3.0: zone sets (the content itself comes on the zoneSet topic, or by download)
+    DOWNLOAD_ZONE_SET = "downloadZoneSet"
+    ENABLE_ZONE_SET = "enableZoneSet"
+    DELETE_ZONE_SET = "deleteZoneSet"
 
 
 # --- header ----------------------------------------------------------------------------------------
@@ -338,6 +342,66 @@ class InstantActionsContent(VdaModel):
 
 
 class InstantActions(MessageHeader, InstantActionsContent):
+    pass
+
+
+# --- zone sets and responses (3.0) ------------------------------------------------------------------
+
+
+class Vertex(VdaModel):
+    x: float
+    y: float
+
+
+class Zone(VdaModel):
+    """A zone of a zone set; the fields beyond the first four are those of its zone type
+    (``vda5050.zones.TYPE_FIELDS``)."""
+
+    zone_id: str
+    zone_type: str
+    zone_descriptor: str | None = None
+    vertices: list[Vertex] = Field(min_length=3)
+    release_loss_behavior: str | None = None
+    maximum_speed: float | None = None
+    # ACTION zones' actions, as on the wire (actionType, blockingType, ...; no actionId)
+    entry_actions: list[dict[str, Any]] | None = None
+    during_actions: list[dict[str, Any]] | None = None
+    exit_actions: list[dict[str, Any]] | None = None
+    priority_factor: float | None = None
+    penalty_factor: float | None = None
+    direction: float | None = None
+    directed_limitation: str | None = None
+    bidirected_limitation: str | None = None
+
+
+class ZoneSetDefinition(VdaModel):
+    map_id: str
+    zone_set_id: str
+    zone_set_descriptor: str | None = None
+    zones: list[Zone]
+
+
+class ZoneSetContent(VdaModel):
+    zone_set: ZoneSetDefinition
+
+
+class ZoneSetMessage(MessageHeader, ZoneSetContent):
+    pass
+
+
+class Response(VdaModel):
+    """Fleet control's answer to one zone or edge request (``requestId``)."""
+
+    request_id: str
+    grant_type: str  # vda5050.zones.GrantType
+    lease_expiry: str | None = None  # ISO 8601; none: granted until the robot releases it
+
+
+class ResponsesContent(VdaModel):
+    responses: list[Response]
+
+
+class Responses(MessageHeader, ResponsesContent):
     pass
 
 
@@ -511,26 +575,6 @@ class State(MessageHeader, StateContent):
     pass
 
 
-# --- responses (3.0) --------------------------------------------------------------------------------
-
-
-class Response(VdaModel):
-    """Fleet control's answer to one zone or edge request (``GRANTED``, ``QUEUED``, ``REVOKED``,
-    ``REJECTED``)."""
-
-    request_id: str
-    grant_type: str
-    lease_expiry: str | None = None
-
-
-class ResponsesContent(VdaModel):
-    responses: list[Response]
-
-
-class Responses(MessageHeader, ResponsesContent):
-    pass
-
-
 # --- connection ------------------------------------------------------------------------------------
 
 
@@ -573,6 +617,7 @@ class TypeSpecification(VdaModel):
     max_load_mass: float
     localization_types: list[LocalizationType | str]  # 3.0: free text
     navigation_types: list[NavigationType | str]
+    supported_zones: list[str] | None = None  # 3.0: the zone types the robot knows
 
 
 class PhysicalParameters(VdaModel):
@@ -772,7 +817,7 @@ class Factsheet(FactsheetContent):
     serial_number: str
 
 
-Message = Order | InstantActions | State | Connection | Visualization | Factsheet | Responses
+Message = Order | InstantActions | State | Connection | Visualization | Factsheet | ZoneSetMessage | Responses
 Content = (
     OrderContent
     | InstantActionsContent
@@ -780,5 +825,6 @@ Content = (
     | ConnectionContent
     | VisualizationContent
     | FactsheetContent
+    | ZoneSetContent
     | ResponsesContent
 )

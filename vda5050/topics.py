@@ -25,7 +25,8 @@ class Topic(StrEnum):
     VISUALIZATION = "visualization"
     CONNECTION = "connection"
     FACTSHEET = "factsheet"
-    RESPONSES = "responses"  # 3.0: fleet control's answers to zone (and edge) requests
+    ZONE_SET = "zoneSet"  # 3.0, fleet control -> robot
+    RESPONSES = "responses"  # 3.0, fleet control -> robot: answers to zone and edge requests
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,8 @@ RENAMED_IN_3: dict[Topic, dict[str, str]] = {
     },
     Topic.VISUALIZATION: _POSITION_3,
     Topic.CONNECTION: {},
+    # 3.0-only topics: our names are 3.0's.
+    Topic.ZONE_SET: {},
     Topic.RESPONSES: {},
     Topic.FACTSHEET: {
         "typeSpecification.agvKinematic": "mobileRobotKinematics",
@@ -115,8 +117,9 @@ RENAMED_VALUES_IN_3: dict[Topic, dict[str, dict[str, str]]] = {
     Topic.INSTANT_ACTIONS: {},
     Topic.STATE: {"operatingMode": {"TEACHIN": "TEACH_IN"}},
     Topic.VISUALIZATION: {},
-    Topic.RESPONSES: {},
     Topic.CONNECTION: {"connectionState": {"CONNECTIONBROKEN": "CONNECTION_BROKEN"}},
+    Topic.ZONE_SET: {},
+    Topic.RESPONSES: {},
     Topic.FACTSHEET: {
         "typeSpecification.agvKinematic": {
             "DIFF": "DIFFERENTIAL",

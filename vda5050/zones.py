@@ -11,8 +11,10 @@ from collections.abc import Iterable, Mapping
 from enum import StrEnum
 from typing import Any
 
-from vda5050.models import State
+from vda5050.models import State, ZoneSetContent
 from vda5050.versions import V3_0
+
+ZONE_SET_ID = "zoneSetId"  # the parameter of enableZoneSet and deleteZoneSet
 
 
 class ZoneType(StrEnum):
@@ -89,6 +91,14 @@ def supported_zones(factsheet: Mapping[str, Any] | None) -> list[str]:
         return []
     zones = (factsheet.get("typeSpecification") or {}).get("supportedZones") or []
     return [str(zone_type) for zone_type in zones] if isinstance(zones, list) else []
+
+
+def zone_set_message(
+    *, zone_set_id: str, map_id: str, description: str, zones: Iterable[Mapping[str, Any]]
+) -> ZoneSetContent:
+    """The ``zoneSet`` message (without header) of a zone set in the API's shape."""
+    content = zone_set_content(zone_set_id=zone_set_id, map_id=map_id, description=description, zones=zones)
+    return ZoneSetContent.model_validate({"zoneSet": content})
 
 
 def fields_of(zone_type: str) -> tuple[str, ...]:

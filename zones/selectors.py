@@ -7,6 +7,8 @@ from django.db.models import QuerySet
 
 from kit.api.errors import QueryValidationError
 from kit.api.rows import object_get
+from vda5050.models import ZoneSetContent
+from vda5050.zones import zone_set_message
 from zones.filters import ZoneSetFilter
 from zones.models import ZoneGrant, ZoneSet
 
@@ -37,3 +39,12 @@ def zone_set_enabled_on(*, map_id: str) -> ZoneSet | None:
 def zone_grants(*, map_id: str) -> QuerySet[ZoneGrant]:
     """The grants of the map's RELEASE zones, in the order they were given."""
     return ZoneGrant.objects.filter(map_id=map_id).order_by("zone_id", "granted_at", "id")
+
+
+def zone_set_messages(*, names: list[str]) -> list[ZoneSetContent]:
+    """The ``zoneSet`` messages (without header) of the named zone sets that exist, in name order."""
+    rows = ZoneSet.objects.filter(name__in=names).order_by("name")
+    return [
+        zone_set_message(zone_set_id=z.name, map_id=z.map_id, description=z.description, zones=z.zones)
+        for z in rows.only("name", "map_id", "description", "zones")
+    ]

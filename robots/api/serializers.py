@@ -28,7 +28,6 @@ from robots.choices import (
 )
 from robots.models import Robot
 from vda5050.models import MapStatus
-from vda5050.zones import supported_zones
 
 
 def _model_default(field: str) -> Any:
@@ -200,12 +199,11 @@ class HardwareVersionSerializer(serializers.Serializer):
 class FactsheetSerializer(serializers.Serializer):
     agv_class = serializers.ChoiceField(choices=AgvClass.choices, help_text="From the robot's factsheet.")
     speed_max = serializers.FloatField(help_text="From the robot's factsheet; -1 until it has sent one.")
-    supported_zones = serializers.SerializerMethodField(
-        help_text="The zone types the robot's factsheet lists (VDA 5050 3.0 supportedZones); empty without."
+    supported_zones = serializers.ListField(
+        child=serializers.CharField(),
+        help_text="The zone types the robot's factsheet lists (VDA 5050 3.0 supportedZones); empty without. "
+        "A robot with some gets the enabled zone sets of its maps.",
     )
-
-    def get_supported_zones(self, robot: Robot) -> list[str]:
-        return supported_zones(robot.factsheet)
 
 
 class RobotMapSerializer(serializers.Serializer):

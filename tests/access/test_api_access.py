@@ -17,7 +17,7 @@ from robots.models import Robot
 from stations.models import Station
 from tests.access.endpoints import PUBLIC_PATHS, Endpoint, endpoints
 from tests.conftest import authenticated_client
-from tests.factories import MissionFactory, RobotFactory, StationFactory, ZoneSetFactory
+from tests.factories import CAN_CHARGE, MissionFactory, RobotFactory, StationFactory, ZoneSetFactory
 from zones.models import ZoneGrant
 
 pytestmark = pytest.mark.django_db
@@ -50,7 +50,7 @@ def objects() -> None:
         name=NAME,
         protocol_version="2.1.0",
         online=True,
-        factsheet={"protocolFeatures": {"agvActions": [{"actionType": "startCharging"}]}},
+        factsheet=CAN_CHARGE,
     )
     MissionFactory(name=NAME, robot=NAME)
     StationFactory(name=NAME)

@@ -244,6 +244,94 @@ def test_a_stopped_charger_is_free_for_the_next_low_robot_in_the_same_plan():
     assert result.charging_trips == (Trip("next", "c1", CHARGER),)
 
 
+# --- back at a charger (its reservation released while it was offline) -----------------------------------
+
+
+def back(name: str, level: float = 50.0, x: float = 0.0, **fields) -> StationRobot:
+    """A robot online again, charging at (x, 0), its latest trip ended (at_station) or not."""
+    return robot(name, level, x=x, battery={"charging": True}, **fields)
+
+
+BACK_CASES = {
+    "at a free charger: takes it again, no trip": (
+        [back("r1", x=0.05)],
+        [station("c1")],
+        {"c1": ("r1",)},
+        (),
+    ),
+    "its trip canceled while it was away: the same": (
+        [back("r1", trip_failed=True, retry_at=NOW + timedelta(seconds=10))],
+        [station("c1")],
+        {"c1": ("r1",)},
+        (),
+    ),
+    "at a charger another robot took meanwhile: stopCharging": (
+        [back("r1"), robot("other", 20, x=9)],
+        [station("c1", reservations=("other",))],
+        {"c1": ("other",)},
+        ("r1",),
+    ),
+    "two at a charger of one place: the lower battery keeps charging": (
+        [back("r1", 60), back("r2", 40)],
+        [station("c1")],
+        {"c1": ("r2",)},
+        ("r1",),
+    ),
+    "told to stop already: not taken again, not told twice": (
+        [back("r1", stopping=True)],
+        [station("c1")],
+        {"c1": ()},
+        (),
+    ),
+    "charging elsewhere, or at a charger not for it: left alone": (
+        [back("r1", x=0.5), back("r2", x=9, robot_type="TUGGER")],
+        [station("c1"), station("c9", x=9, robot_types=frozenset({"FORKLIFT"}))],
+        {"c1": (), "c9": ()},
+        (),
+    ),
+    "at a parking station: left alone": (
+        [back("r1")],
+        [station("p1", kind=PARKING)],
+        {"p1": ()},
+        (),
+    ),
+}
+
+
+@pytest.mark.parametrize(("robots", "stations", "reservations", "stops"), BACK_CASES.values(), ids=BACK_CASES)
+def test_a_robot_back_at_a_charger_takes_it_again_where_it_has_room_or_stops(
+    robots, stations, reservations, stops
+):
+    result = plan(robots, stations)
+
+    assert result.reservations == reservations
+    assert result.stop_charging == stops
+    assert result.charging_trips == ()
+    assert {(resume.robot, resume.station) for resume in result.resumed} == {
+        (name, site.name)
+        for site in stations
+        for name in reservations[site.name]
+        if name not in site.reservations
+    }
+
+
+def test_a_robot_taken_back_stops_at_its_maximum_as_any_other():
+    result = plan([back("r1", 95)], [station("c1")])
+
+    assert result.stop_charging == ("r1",)
+    assert result.reservations == {"c1": ()}
+
+
+def test_a_low_robot_stopped_at_a_charger_another_holds_is_sent_to_a_free_one():
+    result = plan(
+        [back("r1", 20), robot("other", 20, x=9)],
+        [station("c1", reservations=("other",)), station("c2", x=30)],
+    )
+
+    assert result.stop_charging == ("r1",)
+    assert result.charging_trips == (Trip("r1", "c2", CHARGER),)
+
+
 # --- releases ----------------------------------------------------------------------------------------------
 
 
@@ -329,13 +417,27 @@ MAPS = ["map", "yard"]
 
 @st.composite
 def fleets(draw):
+    stations = [
+        StationSite(
+            name=name,
+            kind=draw(st.sampled_from([CHARGER, PARKING])),
+            pose=Pose(draw(st.integers(0, 20)), draw(st.integers(0, 20)), draw(st.sampled_from(MAPS))),
+            robot_types=frozenset(draw(st.lists(st.sampled_from(TYPES), max_size=1))),
+            capacity=draw(st.integers(1, 3)),
+            # Whatever the rows hold, even what the rules never make: unknown robots, over capacity, twice.
+            reservations=tuple(draw(st.lists(st.sampled_from([*NAMES, "ghost"]), unique=True, max_size=4))),
+        )
+        for name in draw(st.lists(st.sampled_from(STATION_NAMES), unique=True, max_size=len(STATION_NAMES)))
+    ]
+    # Anywhere, or at a station (back at a charger, charging, or parked).
+    poses = st.none() | st.builds(Pose, st.integers(0, 20), st.integers(0, 20), st.sampled_from(MAPS))
+    if stations:
+        poses |= st.sampled_from([site.pose for site in stations])
     robots = [
         StationRobot(
             name=name,
             robot_type=draw(st.sampled_from(TYPES)),
-            pose=draw(
-                st.none() | st.builds(Pose, st.integers(0, 20), st.integers(0, 20), st.sampled_from(MAPS))
-            ),
+            pose=draw(poses),
             online=draw(st.booleans()),
             idle=draw(st.booleans()),
             battery=Battery(
@@ -348,20 +450,9 @@ def fleets(draw):
             can_charge=draw(st.booleans()),
             at_station=draw(st.booleans()),
             idle_since=NOW - timedelta(seconds=draw(st.integers(0, 600))),
+            stopping=draw(st.booleans()),
         )
         for name in draw(st.lists(st.sampled_from(NAMES), unique=True, max_size=len(NAMES)))
-    ]
-    stations = [
-        StationSite(
-            name=name,
-            kind=draw(st.sampled_from([CHARGER, PARKING])),
-            pose=Pose(draw(st.integers(0, 20)), draw(st.integers(0, 20)), draw(st.sampled_from(MAPS))),
-            robot_types=frozenset(draw(st.lists(st.sampled_from(TYPES), max_size=1))),
-            capacity=draw(st.integers(1, 3)),
-            # Whatever the rows hold, even what the rules never make: unknown robots, over capacity, twice.
-            reservations=tuple(draw(st.lists(st.sampled_from([*NAMES, "ghost"]), unique=True, max_size=4))),
-        )
-        for name in draw(st.lists(st.sampled_from(STATION_NAMES), unique=True, max_size=len(STATION_NAMES)))
     ]
     return robots, stations, draw(st.none() | st.sampled_from([0, 60, 300]))
 
@@ -391,12 +482,14 @@ def test_releases_then_trips_make_the_new_reservations(fleet):
 
     released = {(release.robot, release.station) for release in result.releases}
     reserved = {(trip.robot, trip.station) for trip in trips}
+    resumed = {(resume.robot, resume.station) for resume in result.resumed}
 
-    # Applied in order, releases then trips, they make the new reservations (a robot released from a station
-    # it held twice may be sent back to it).
+    # Applied in order, releases then resumptions and trips, they make the new reservations (a robot released
+    # from a station it held twice may be sent back to it).
     assert released <= before
-    assert after == (before - released) | reserved
-    assert not (before - released) & reserved
+    assert after == (before - released) | resumed | reserved
+    assert not (before - released) & (resumed | reserved)
+    assert not resumed & reserved
     assert len({trip.robot for trip in trips}) == len(trips)
     kinds = {site.name: site.kind for site in stations}
     assert all(kinds[trip.station] == trip.kind for trip in trips)
@@ -437,6 +530,9 @@ def test_the_plan_does_not_depend_on_the_order_of_its_inputs(fleet):
 def test_a_second_plan_over_the_first_ones_reservations_sends_no_robot_twice(fleet):
     robots, stations, park_after = fleet
     first = plan(robots, stations, park_after)
+    # As the next run reads them: a robot sent on a trip is not at its station (its latest trip is the new).
+    sent = {trip.robot for trip in (*first.charging_trips, *first.parking_trips)}
+    robots = [replace(r, at_station=False) if r.name in sent else r for r in robots]
     again = plan(robots, [replace(s, reservations=first.reservations[s.name]) for s in stations], park_after)
 
     assert not again.charging_trips or not (

@@ -3,19 +3,22 @@ robots, which know nothing of zones; the dispatcher alone keeps them apart by ho
 back at a RELEASE zone's edge. Checked from every state the robots send: never two inside a zone at once.
 """
 
+import re
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from datetime import datetime
+from pathlib import Path
 from typing import Any
 
+import orjson
 import pytest
 from rest_framework.test import APIClient
 
-from dispatch.polygons import Point, contains
 from dispatch.step import ZONE_WAITING
 from tests.e2e.conftest import Simulator
 from tests.e2e.helpers import Tap, create_robot, get, post_mission, route, tapped, wait_mission, wait_robot
 from tests.waiting import wait_for
+from vda5050.polygons import Point, contains
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -149,4 +152,33 @@ def test_a_robot_killed_inside_a_zone_frees_it_after_its_heartbeat_timeout(api, 
 
     assert wait_mission(api, through)["status"]["state"] == "COMPLETED"
     assert get(api, "robot", stuck)["status"]["online"] is False
-    assert get(api, "robot", passing)["status"]["zone_access"]["held"] == []
+    # The plan lets the zone go on its next run after the robot left it, a moment after the mission ended.
+    wait_robot(api, passing, zone_access={"held": [], "waiting": []})
+
+
+def readme_bodies(section: str) -> list[dict[str, Any]]:
+    """The JSON bodies of the curl commands in the README's section `section` (up to the next heading)."""
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text().split(f"### {section}\n", 1)[1]
+    return [orjson.loads(body) for body in re.findall(r"-d '([^']*)'", text.split("\n### ", 1)[0])]
+
+
+def test_the_readmes_two_robots_take_turns_through_its_aisle(api, simulator, unique):
+    """README, "Zone access": `make run`'s two robots where they start, "Zone sets"' set, the two missions."""
+    zone_set_body = readme_bodies("Zone sets")[0]
+    assert api.post("/zone_set", zone_set_body, format="json").status_code == 200
+    assert api.post(f"/zone_set/{zone_set_body['name']}/enable").status_code == 200
+    carter01, carter02 = robots_at(api, simulator, unique, ("carter01", 4, 5), ("carter02", 9, 9))
+    names = {"carter01": carter01, "carter02": carter02}
+    missions = [{**body, "robot": names[body["robot"]]} for body in readme_bodies("Zone access")]
+    assert [mission["robot"] for mission in missions] == [carter01, carter02]
+
+    with taps(carter01, carter02) as recorded:
+        for mission in missions:
+            assert api.post("/mission", mission, format="json").status_code == 200
+        for mission in missions:
+            assert wait_mission(api, mission["name"])["status"]["state"] == "COMPLETED"
+
+    aisle = tuple((v["x"], v["y"]) for v in zone_set_body["zones"][0]["vertices"])
+    together, seen = inside_together(recorded, aisle)
+    assert together == []
+    assert seen == {carter01, carter02}

@@ -20,7 +20,7 @@ from typing import Any
 
 import orjson
 
-from dispatch.polygons import Polygon, contains
+from vda5050.polygons import Polygon, contains
 
 TERMINAL = frozenset({"COMPLETED", "FAILED", "CANCELED"})
 FINAL_ACTION_STATUSES = frozenset({"FINISHED", "FAILED"})
@@ -373,9 +373,10 @@ def check_leaves(
     during which the observer never looked away had an order on the wire for each of its leaves. A leaf
     sent ahead in an order update (`carried_leaf`) counts only if the robot's states show it took that
     update: one it never took (lost, refused) ran nothing, and the leaf gets an order of its own. A leaf's
-    next attempt sent after its robot restarted (`restarts` began between the leaf's previous order and
-    that one) is the rest of its route resumed: not the leaf run twice, nor a step back from the next leaf
-    if that one had only been sent ahead."""
+    next attempt sent after its robot restarted (a `restarts` window overlaps the time from the leaf's
+    previous order to that one: the robot went down after the previous order, or the previous order went
+    out while it was down and never reached the fresh robot) is the rest of its route resumed: not the
+    leaf run twice, nor a step back from the next leaf if that one had only been sent ahead."""
     result = CheckResult("leaves in order, never twice")
     resumed = 0
     by_name = {m.name: m for m in posted}
@@ -430,7 +431,7 @@ def check_leaves(
             resuming = (
                 order_id not in ids
                 and bool(ids)
-                and any(sent_at[index] <= w.start <= message.t for w in restarts)
+                and any(w.overlaps(sent_at[index], message.t) for w in restarts)
             )
             if index < highest and not resuming:  # resuming: the later leaf had only gone ahead
                 result.problems.append(

@@ -15,9 +15,9 @@ from typing import Any
 
 import requests
 
-from dispatch.polygons import Polygon, contains
 from simulator.config import RobotConfig
 from tests.faults.checks import UNBOUND, HttpAttempt, PostedMission
+from vda5050.polygons import Polygon, contains
 
 MISSION_TIMEOUT = 900.0  # s: far beyond the suite's bounds; a mission that times out is a finding
 RETRY_PERIOD = 0.3

@@ -6,7 +6,6 @@ import itertools
 import random
 from typing import Any
 
-from dispatch.polygons import contains
 from simulator.config import spread_robots
 from tests.faults import checks
 from tests.faults.checks import (
@@ -20,6 +19,7 @@ from tests.faults.checks import (
 )
 from tests.faults.load import ZONE, PlannedMission, plan_missions
 from tests.faults.runner import KINDS, plan_faults
+from vda5050.polygons import contains
 
 PREFIX = "uagv/v2/RobotCompany"
 
@@ -236,6 +236,15 @@ def test_a_leaf_resumed_after_its_robot_restarted_is_not_reached_twice():
     assert result.ok, result.problems
     assert "1 leaves resumed after their robot restarted" in result.notes
     assert not checks.check_leaves([M1], final, messages, [], restarts=[Window(6, 7, "simulator")]).ok
+
+
+def test_a_leaf_ordered_while_its_robot_was_down_then_again_is_resumed_not_reached_twice():
+    """The first order went out while the simulator was being restarted: the fresh robot never had it."""
+    messages = [order(2, "r1", "m1-n0-r0", 0), order(5, "r1", "m1-n0-r1", 1), order(8, "r1", "m1-n1-r0", 2)]
+    final = {"m1": mission_object("COMPLETED", DONE)}
+
+    assert checks.check_leaves([M1], final, messages, [], restarts=[Window(1, 3, "simulator")]).ok
+    assert not checks.check_leaves([M1], final, messages, [], restarts=[Window(0.5, 1.5, "simulator")]).ok
 
 
 def test_a_leaf_resumed_after_its_robot_restarted_may_follow_the_next_leaf_sent_ahead():

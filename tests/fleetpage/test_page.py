@@ -21,6 +21,8 @@ from tests.fleetpage.page import PASSWORD, fleet_page, page_server, staff_user
 from tests.granian_server import GranianServer
 from tests.server_env import SERVER_ENV
 from tests.waiting import wait_for
+from tests.zones.bodies import zone
+from zones.services import zone_set_create, zone_set_disable, zone_set_enable
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True), needs_chromium]
 sync_api = pytest.importorskip("playwright.sync_api")
@@ -142,3 +144,40 @@ def test_a_mission_given_back_to_assignment_leaves_its_robots_queue_on_the_page(
 
         expect(fleet.mission_row("given").locator(".robot-link")).to_have_text("(unbound)")
         expect(queue).to_have_count(0)
+
+
+def test_the_enabled_zone_sets_of_the_map_shown_are_drawn_with_their_holders_and_follow_enable_and_disable(
+    server: GranianServer, make_robot
+):
+    robot = make_robot(prefix="zoned")
+    Robot.objects.filter(name=robot.name).update(
+        online=True, pose_map_id="hall", last_state_at=timezone.now()
+    )
+    actor = command_actor("test")
+    spec = {"map_id": "hall", "description": "", "zones": [zone("RELEASE", "aisle"), zone("BLOCKED", "pit")]}
+    hall = zone_set_create(actor=actor, name="hall-v1", prefix=None, spec=spec)
+    other = zone_set_create(actor=actor, name="yard-v1", prefix=None, spec={**spec, "map_id": "yard"})
+    zone_set_enable(actor=actor, zone_set=other)  # another map's: not drawn on this one
+
+    with fleet_page(server.url, username=staff_user()) as fleet:
+        fleet.show_map("hall")
+        zones = fleet.page.locator("path.zone")
+        expect(zones).to_have_count(0)  # the hall's set is not enabled
+
+        zone_set_enable(actor=actor, zone_set=hall)
+        expect(zones).to_have_count(2)
+        expect(fleet.page.locator('path.zone-release[data-zone="hall-v1/aisle"]')).to_have_count(1)
+        expect(fleet.page.locator('path.zone-blocked[data-zone="hall-v1/pit"]')).to_have_count(1)
+
+        # The zone plan grants the robot the aisle (its status.zone_access), then lets it go.
+        held = fleet.page.locator('path.zone-held[data-zone="hall-v1/aisle"]')
+        expect(held).to_have_count(0)
+        access = {"held": [{"map_id": "hall", "zone_id": "aisle"}], "waiting": []}
+        Robot.objects.filter(name=robot.name).update(zone_access=access)
+        expect(held).to_have_count(1)
+        expect(fleet.page.locator("path.zone-held")).to_have_count(1)  # not the pit
+        Robot.objects.filter(name=robot.name).update(zone_access={"held": [], "waiting": []})
+        expect(held).to_have_count(0)
+
+        zone_set_disable(actor=actor, zone_set=hall)
+        expect(zones).to_have_count(0)

@@ -140,17 +140,18 @@ def test_a_mission_created_after_the_steps_last_look_at_the_queue_is_started_by_
     robot: Robot, wakes: list[tuple[str, str]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     creations: list[OnItsOwnConnection] = []
-    read_queue = missions.robot_step._current_missions
+    records = missions.robot_step.mission_records
 
-    def read_queue_then_create(name: str, *, count: int) -> list[Any]:
-        """The step's look at the queue once "last" is done; the creation commits right after it."""
-        upcoming = read_queue(name, count=count)
+    def read_queue_then_create(rows: list[Any]) -> list[Any]:
+        """The step's read of the queue ("last" alone: its whole queue, not read again once "last" is
+        done); the creation commits right after it."""
+        upcoming = records(rows)
         if not creations:
             creations.append(creation("next", robot.name).start())
             assert creations[0].done(timeout=10)
         return upcoming
 
-    monkeypatch.setattr(missions.robot_step, "_current_missions", read_queue_then_create)
+    monkeypatch.setattr(missions.robot_step, "mission_records", read_queue_then_create)
 
     outcome = robot_step(name=robot.name)
 

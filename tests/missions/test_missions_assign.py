@@ -11,8 +11,10 @@ from django.db import connection, transaction
 from django.utils import timezone
 from pytest_django.fixtures import Settings
 
+from changes.models import Change
 from dispatch.assignment import ALL_BUSY, NO_LABELS, NONE_ONLINE, NOT_YET_ASSIGNED
 from missions import robot_step as robot_step_module
+from missions import services
 from missions.choices import MissionState
 from missions.models import Mission
 from missions.robot_step import robot_step
@@ -206,10 +208,14 @@ def test_an_unbound_mission_past_its_deadline_fails_and_is_never_bound() -> None
     assert mission.node_status["root"]["state"] == MissionState.FAILED
 
 
-def claim(robot: str) -> str | None:
-    """`mission_claim` in a transaction of its own, as the step that calls it has one."""
+def claim(robot: str, *, hold: threading.Barrier | None = None) -> str | None:
+    """The mission `mission_claim` chooses, in a transaction of its own as the step's (which binds it), held
+    open until `hold` lets it go."""
     with transaction.atomic():
-        return mission_claim(robot=robot)
+        claimed = mission_claim(robot=robot)
+        if hold is not None:
+            hold.wait()
+        return None if claimed is None else claimed.name
 
 
 def created_ago(name: str, seconds: float) -> None:
@@ -283,9 +289,31 @@ def test_a_robot_fallen_free_claims_the_oldest_of_the_highest_priority_it_can_do
         created_ago(name, 1.0)
 
     assert claim("r1") == "urgent_lift"
-    assert robot_of("urgent_lift") == "r1"
-    assert Mission.objects.get(name="urgent_lift").assignment[-1]["robot"] == "r1"
-    assert claim("r1") is None  # it has a mission bound now: not free
+    assert robot_of("urgent_lift") is None  # its step binds it, in the write that starts it
+
+
+def test_a_claim_whose_choices_went_to_others_meanwhile_reads_the_pool_again(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    robot("r1")
+    robot("r2", x=5.0)
+    unbound("m1")
+    unbound("m2")
+    for name in ("m1", "m2"):
+        created_ago(name, 1.0)
+    monkeypatch.setattr(services, "CLAIM_PAGE", 1)
+    read = services.claim_inputs
+
+    def read_then_lose_it(**kwargs: Any) -> Any:
+        """The page read, then its mission bound by another robot's claim before this one locks it."""
+        inputs = read(**kwargs)
+        if inputs.missions and inputs.missions[0].name == "m1":
+            Mission.objects.filter(name="m1").update(robot="r2")
+        return inputs
+
+    monkeypatch.setattr(services, "claim_inputs", read_then_lose_it)
+
+    assert claim("r1") == "m2"
 
 
 def test_a_claim_leaves_missions_younger_than_the_quiet_time_to_the_run(settings: Settings) -> None:
@@ -360,8 +388,19 @@ def test_a_robot_that_ends_its_last_mission_starts_an_unbound_one_in_the_same_st
         assert robot_step_module._unbound_seen.is_set()  # the next step that ends a mission claims
         return
     assert [order.order_id for order in orders(outcome)] == ["next-n0-r0"]
-    assert (mission.robot, mission.state) == (created.name, MissionState.RUNNING)
-    assert mission.assignment[-1]["robot"] == created.name
+    assert (mission.robot, mission.state, mission.waiting_reason) == (
+        created.name,
+        MissionState.RUNNING,
+        None,
+    )
+    [binding] = mission.assignment
+    assert (binding["robot"], binding["released_at"]) == (created.name, None)
+    # Bound and started in one write: the change feed has one image for both, none of it bound but queued.
+    images = [change.image for change in Change.objects.filter(kind="mission", name="next").order_by("id")]
+    assert [(image["robot"], image["state"]) for image in images] == [
+        (None, MissionState.PENDING),
+        (created.name, MissionState.RUNNING),
+    ]
 
 
 def test_robots_falling_free_together_claim_different_missions_the_best_ones() -> None:
@@ -372,13 +411,14 @@ def test_robots_falling_free_together_claim_different_missions_the_best_ones() -
         unbound(f"m{index}", priority=1 if index >= 7 else 0)
         created_ago(f"m{index}", 10.0 - index / 10)  # m0 the oldest
     barrier = threading.Barrier(len(robots))
+    held = threading.Barrier(len(robots))  # no claim's transaction ends before every robot has claimed
     claimed: dict[str, str | None] = {}
     errors: list[BaseException] = []
 
     def claim_together(name: str) -> None:
         try:
             barrier.wait()
-            claimed[name] = claim(name)
+            claimed[name] = claim(name, hold=held)
         except BaseException as error:  # reported below
             errors.append(error)
         finally:
@@ -393,4 +433,3 @@ def test_robots_falling_free_together_claim_different_missions_the_best_ones() -
     assert not errors
     assert None not in claimed.values()  # none came away empty for another's lock
     assert sorted(claimed.values()) == ["m0", "m1", "m2", "m7", "m8", "m9"]  # priority 1 first, then oldest
-    assert {robot_of(mission): mission for mission in claimed.values()} == claimed

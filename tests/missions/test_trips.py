@@ -2,6 +2,7 @@
 outside a test transaction, as the workers run; the robots' rows are written as the bridge writes them."""
 
 import threading
+import time
 from datetime import timedelta
 from typing import Any
 
@@ -10,7 +11,7 @@ from django.db import connection
 from django.test import override_settings
 from django.utils import timezone
 
-from dispatch.stations import CHARGING, NO_FREE_CHARGER, NO_START_CHARGING, RETRY_LATER
+from dispatch.stations import CHARGING, NO_FREE_CHARGER, NO_START_CHARGING, RETRY_LATER, Resume
 from dispatch.vocabulary import MissionPurpose, RobotState, StationKind
 from missions.choices import MissionState
 from missions.models import Mission
@@ -20,14 +21,13 @@ from missions.services import mission_create
 from missions.trips import TRIP_PRIORITY, stations_plan_run
 from robots.models import InstantAction, Robot
 from robots.services import robot_delete
+from robots.status import robot_check_heartbeats, robots_came_online
 from stations.models import Station
-from tests.factories import TEST_ACTOR, RobotFactory, StationFactory
+from tests.factories import CAN_CHARGE, TEST_ACTOR, RobotFactory, StationFactory
 from tests.missions.test_robot_step import put_state
 from vda5050.models import ActionType
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-CAN_CHARGE = {"protocolFeatures": {"agvActions": [{"actionType": ActionType.START_CHARGING.value}]}}
 
 
 def robot(name: str, *, x: float = 0.0, level: float = 80.0, **fields: Any) -> Robot:
@@ -159,6 +159,81 @@ def test_an_offline_or_deleted_robot_loses_its_reservation_and_its_trip_is_cance
     assert reservations("c1") == []
     [trip] = trips("away")
     assert trip.state == MissionState.CANCELED
+
+
+def charging_at_its_charger(name: str, *, level: float, trip_state: MissionState) -> Mission:
+    """`name` sent to charge at c1 (at its pose), its trip in `trip_state`, the robot reporting CHARGING."""
+    stations_plan_run()
+    [trip] = trips(name)
+    Mission.objects.filter(name=trip.name).update(state=trip_state, start_timestamp=timezone.now())
+    if trip_state == MissionState.COMPLETED:
+        end_trip(trip, trip_state)
+    Robot.objects.filter(name=name).update(state=RobotState.CHARGING, battery_level=level)
+    return trip
+
+
+def stop_chargings(name: str) -> int:
+    return InstantAction.objects.filter(robot_id=name, action_type=ActionType.STOP_CHARGING).count()
+
+
+@pytest.mark.parametrize(
+    "trip_state",
+    [MissionState.COMPLETED, MissionState.RUNNING],
+    ids=["charging_when_it_went_away", "its_trip_running_when_it_went_away"],
+)
+def test_a_robot_offline_while_charging_loses_its_charger_and_back_still_charging_takes_it_again(
+    trip_state: MissionState,
+) -> None:
+    robot("r1", level=20.0)
+    station("c1")
+    trip = charging_at_its_charger("r1", level=25.0, trip_state=trip_state)
+
+    assert robot_check_heartbeats(now=time.time()) == ["r1"]  # never heard within its heartbeat timeout
+    stations_plan_run()
+
+    assert reservations("c1") == [] and stop_chargings("r1") == 0
+    trip.refresh_from_db()
+    if trip_state == MissionState.RUNNING:  # canceled: the engine ends it once the robot is back
+        assert trip.needs_canceled
+        end_trip(trip, MissionState.CANCELED)
+    else:
+        assert trip.state == MissionState.COMPLETED
+
+    robots_came_online(names=["r1"])
+    plan = stations_plan_run()
+
+    assert plan is not None and plan.resumed == (Resume("r1", "c1"),)
+    assert reservations("c1") == ["r1"] and len(trips("r1")) == 1  # no trip to where it stands
+    assert plan.waiting == {"r1": CHARGING} and stop_chargings("r1") == 0
+    stations_plan_run()  # it keeps it (a trip canceled while it was away is no failed trip)
+    assert reservations("c1") == ["r1"]
+
+    Robot.objects.filter(name="r1").update(battery_level=90.0)
+    plan = stations_plan_run()
+    assert plan is not None and plan.stop_charging == ("r1",) and reservations("c1") == []
+    stations_plan_run()  # still charging until it has stopped: neither taken back nor told twice
+    assert reservations("c1") == [] and stop_chargings("r1") == 1
+
+
+def test_a_robot_back_at_a_charger_another_robot_took_meanwhile_is_sent_stop_charging_once() -> None:
+    robot("r1", level=20.0)
+    station("c1")
+    charging_at_its_charger("r1", level=25.0, trip_state=MissionState.COMPLETED)
+    robot("other", level=20.0, x=5.0)
+    assert stations_plan_run().waiting == {"r1": CHARGING, "other": NO_FREE_CHARGER}
+
+    Robot.objects.filter(name="r1").update(online=False)
+    stations_plan_run()
+    assert reservations("c1") == ["other"]
+
+    Robot.objects.filter(name="r1").update(online=True)
+    plan = stations_plan_run()
+
+    assert plan is not None and plan.stop_charging == ("r1",) and plan.resumed == ()
+    assert reservations("c1") == ["other"] and stop_chargings("r1") == 1
+    assert Robot.objects.get(name="r1").charging_waiting_reason == NO_FREE_CHARGER
+    stations_plan_run()
+    assert stop_chargings("r1") == 1 and reservations("c1") == ["other"]
 
 
 def test_a_charging_robot_is_not_free_for_unbound_missions() -> None:

@@ -13,7 +13,7 @@ from robots.admin import EDITABLE_SPEC_FIELDS
 from robots.choices import Lifecycle, MapAction, RobotState
 from robots.models import InstantAction, Robot
 from robots.services import robot_map_action
-from tests.factories import MissionFactory, RobotFactory
+from tests.factories import CAN_CHARGE, MissionFactory, RobotFactory
 
 pytestmark = pytest.mark.django_db
 
@@ -176,6 +176,21 @@ def test_start_teleop_reports_robots_the_service_refuses(admin_client: Client):
     assert success == (messages.SUCCESS, "START teleop requested for 1 robot.")
     assert warning[0] == messages.WARNING
     assert warning[1].startswith("Robot charging is in CHARGING and request cannot be satisfied")
+
+
+def test_charge_now_asks_robots_that_can_charge_and_reports_those_the_service_refuses(admin_client: Client):
+    able = RobotFactory(name="able", online=True, factsheet=CAN_CHARGE)
+    offline = RobotFactory(name="offline", online=False, factsheet=CAN_CHARGE)
+
+    response = admin_client.post(
+        CHANGELIST, {"action": "charge", "_selected_action": [able.name, offline.name]}
+    )
+
+    assert response.status_code == 302
+    assert dict(Robot.objects.values_list("name", "charge_requested")) == {"able": True, "offline": False}
+    (success, warning) = sent_messages(response)
+    assert success == (messages.SUCCESS, "sent to charge for 1 robot.")
+    assert warning == (messages.WARNING, "Robot offline is offline: it cannot be sent to charge.")
 
 
 def test_delete_removes_a_robot_without_a_running_mission(admin_client: Client):

@@ -4,10 +4,13 @@ charging actions only for robots that can charge."""
 
 from __future__ import annotations
 
+import shlex
+from pathlib import Path
+
 import orjson
 import pytest
 
-from simulator.cli import build_parser, robot_configs
+from simulator.cli import build_parser, robot_configs, settings_from
 from simulator.config import DEFAULT_BATTERY_DRAIN, SimulationSettings, parse_robot_spec
 from tests.simulator.conftest import RobotHarness, action, route
 from vda5050.models import ActionStatus
@@ -15,6 +18,8 @@ from vda5050.topics import Topic
 
 # Spec fields: name,x,y,theta,map_id,failure_period,battery,...,stack,battery_drain,charge_rate
 FULL_ROBOT = "carter01,0,0,0,map,0,100"
+ROOT = Path(__file__).resolve().parents[2]
+README_MINIMUM = 30.0  # README, "Stations: charging and parking": carter01's recommended minimum
 
 
 def charge(h: RobotHarness) -> float:
@@ -120,12 +125,37 @@ def test_a_robot_that_cannot_charge_fails_start_charging():
     assert h.state.battery_state.charging is False
 
 
-def test_the_rates_come_from_the_spec_or_the_command_line():
+def test_the_charge_and_rates_come_from_the_spec_or_the_command_line():
     args = build_parser().parse_args(
-        ["--robots", "a,0,0", "b,0,0,0,map,0,50,,,,,,1.5,3", "--charge_rate", "4"]
+        ["--robots", "a,0,0", "b,0,0,0,map,0,50,,,,,,1.5,3", "--battery", "80", "--charge_rate", "4"]
     )
     a, b = robot_configs(args)
+    settings = settings_from(args)
 
     assert (a.battery_drain, a.charge_rate, b.battery_drain, b.charge_rate) == (None, None, 1.5, 3.0)
+    assert (a.battery_at_start(settings), b.battery_at_start(settings)) == (80.0, 50.0)
+    assert (a.battery_rates(settings), b.battery_rates(settings)) == ((0.0, 4.0), (1.5, 3.0))
+    with pytest.raises(ValueError, match="--battery must be a percentage"):
+        settings_from(build_parser().parse_args(["--battery", "101"]))
     with pytest.raises(ValueError, match="battery_drain and charge_rate"):
         parse_robot_spec("c,0,0,0,map,0,50,,,,,,-1")
+
+
+def test_the_robots_of_make_run_drain_from_a_high_charge_tens_of_missions_before_their_minimum():
+    """deploy/Procfile's simulator (`make run`): batteries that drain, so that a robot goes to charge by
+    itself once a charger exists, but slowly enough that a new user's first missions strand no robot."""
+    line = next(
+        line
+        for line in (ROOT / "deploy" / "Procfile").read_text().splitlines()
+        if line.startswith("simulator:")
+    )
+    argv = shlex.split(line.split(":", 1)[1])
+    args = build_parser().parse_args(argv[argv.index("simulator") + 1 :])
+    settings = settings_from(args)
+
+    for config in robot_configs(args):
+        drain, charge_rate = config.battery_rates(settings)
+        start = config.battery_at_start(settings)
+        assert drain > 0 and charge_rate > 0 and start >= 80
+        # Metres driven before the README's minimum of 30 %: the README's missions drive about 10 m each.
+        assert 300 <= (start - README_MINIMUM) / drain <= 2000

@@ -9,14 +9,22 @@ from pathlib import Path
 import pytest
 
 from simulator.cli import broker_settings, build_parser, robot_configs, settings_from, topic_address
-from simulator.config import Credentials, RobotConfig, RobotType, parse_credentials, parse_robot_spec
+from simulator.config import (
+    Credentials,
+    RobotConfig,
+    RobotType,
+    SimulationSettings,
+    parse_credentials,
+    parse_robot_spec,
+)
 from vda5050.topics import RobotAddress
 
 
 def test_short_spec_uses_the_reference_defaults() -> None:
     config = parse_robot_spec("carter01,4,5")
     assert config == RobotConfig(name="carter01", x=4.0, y=5.0)
-    assert (config.theta, config.map_id, config.failure_period, config.battery) == (0.0, "map", 0, 20.0)
+    assert (config.theta, config.map_id, config.failure_period) == (0.0, "map", 0)
+    assert config.battery_at_start(SimulationSettings()) == 20.0
     assert (config.manufacturer, config.serial, config.robot_type) == ("RobotCompany", "carter01", "CARRIER")
 
 

@@ -24,6 +24,7 @@ from vda5050.models import Factsheet, State, Visualization
 from vda5050.topics import Topic, fleet_subscription, major_version_of
 from vda5050.topics import shared_subscription as shared_filter
 from vda5050.versions import supported_version
+from vda5050.zones import supported_zones
 from workers import metrics, tuning
 from workers.bridge.directory import RobotDirectory
 from workers.bridge.gate import Drop, DropLog, Dropped, Ignored, Received, read, topic_label_of
@@ -286,8 +287,10 @@ class Bridge:
         factsheet = received.message
         assert isinstance(factsheet, Factsheet)
         agv_class = str(factsheet.type_specification.agv_class)
+        as_sent = orjson.loads(received.payload)
         Robot.objects.filter(name=received.name).update(
-            factsheet=orjson.loads(received.payload),
+            factsheet=as_sent,
             agv_class=agv_class if agv_class in AgvClass.values else AgvClass.CARRIER,
             speed_max=factsheet.physical_parameters.speed_max,
+            supported_zones=supported_zones(as_sent),
         )

@@ -7,7 +7,6 @@ from typing import Any
 from rest_framework import serializers
 from rest_framework.exceptions import ErrorDetail
 
-from dispatch.polygons import MIN_VERTICES, polygon_problem
 from kit.api.fields import (
     JsonBooleanField,
     JsonIntegerField,
@@ -18,6 +17,7 @@ from kit.api.fields import (
     validate_int64,
 )
 from kit.api.serializers import ObjectNameSerializer, SpecSerializer, StrictSerializer
+from vda5050.polygons import MIN_VERTICES, polygon_problem
 from vda5050.zones import TYPED_FIELDS, ZoneType, fields_of
 from zones.choices import (
     BidirectedLimitation,

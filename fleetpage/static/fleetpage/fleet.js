@@ -19,8 +19,11 @@ const robots = new Map(); // name -> robot, as GET /robot/{name} has it
 const missions = new Map(); // name -> mission, as GET /mission/{name} has it; in the order first seen
 const running = new Map(); // robot name -> the name of its RUNNING mission
 const stations = new Map(); // name -> the station as the stream last sent it
+const zoneSets = new Map(); // name -> the zone set as the stream last sent it
+const zoneHolders = new Map(); // "map_id/zone_id" -> the robots holding that zone (their status.zone_access)
 const changed = {
-  robots: new Set(), missions: new Set(), missionRobots: new Set(), stations: new Set(), maps: false,
+  robots: new Set(), missions: new Set(), missionRobots: new Set(), stations: new Set(), zoneSets: new Set(),
+  maps: false, zoneHolders: false,
 };
 let frame = 0;
 let received = null; // names sent since the stream (re)opened: after a snapshot, the others are gone
@@ -181,6 +184,34 @@ function drawStation(name) {
     (reservations.length ? ` by ${reservations.join(", ")}` : "");
 }
 
+// The enabled zone sets of the map shown: each zone a polygon in its type's colour, under the stations. A zone
+// a robot holds (its status.zone_access) is filled, and its tooltip names the robots.
+const zoneLayer = L.layerGroup().addTo(map);
+const zonePolygons = new Map(); // zone set name -> its zones' L.Polygons, for the enabled sets on the map shown
+
+function drawZoneSet(name) {
+  const zoneSet = zoneSets.get(name);
+  for (const polygon of zonePolygons.get(name) ?? []) zoneLayer.removeLayer(polygon);
+  zonePolygons.delete(name);
+  if (!zoneSet || !zoneSet.status.enabled || (zoneSet.map_id || DEFAULT_MAP) !== shownMap) return;
+  const polygons = zoneSet.zones.map((zone) => {
+    const holders = zoneHolders.get(`${zoneSet.map_id}/${zone.zone_id}`) ?? [];
+    const polygon = L.polygon(zone.vertices.map((v) => [v.y, v.x]), {
+      className: `zone zone-${zone.zone_type.toLowerCase()}${holders.length ? " zone-held" : ""}`,
+      interactive: true,
+    });
+    const capacity = zone.capacity ? `, ${holders.length}/${zone.capacity} held` : "";
+    polygon.bindTooltip(
+      `${zone.zone_id} (${zone.zone_type}${capacity})` + (holders.length ? ` by ${holders.join(", ")}` : ""),
+      { sticky: true },
+    );
+    zoneLayer.addLayer(polygon);
+    polygon.getElement()?.setAttribute("data-zone", `${name}/${zone.zone_id}`);
+    return polygon;
+  });
+  zonePolygons.set(name, polygons);
+}
+
 function updateMapChoice() {
   const counts = new Map();
   for (const robot of robots.values()) counts.set(mapOf(robot), (counts.get(mapOf(robot)) ?? 0) + 1);
@@ -201,6 +232,9 @@ function showMap(id) {
   markers.clear();
   stationLayer.clearLayers();
   stationMarkers.clear();
+  zoneLayer.clearLayers();
+  zonePolygons.clear();
+  for (const name of zoneSets.keys()) drawZoneSet(name);
   for (const name of stations.keys()) drawStation(name);
   for (const name of robots.keys()) drawRobot(name);
   for (const name of robots.keys()) drawRoute(name);
@@ -390,12 +424,13 @@ function connect() {
   url.searchParams.set("mission.most_recent", config.mission_snapshot);
   source = new EventSource(url);
   source.addEventListener("open", () => {
-    received = { robot: new Set(), mission: new Set(), station: new Set() };
+    received = { robot: new Set(), mission: new Set(), station: new Set(), zone_set: new Set() };
     showStream("live");
   });
   source.addEventListener("robot", (event) => receive("robot", JSON.parse(event.data)));
   source.addEventListener("mission", (event) => receive("mission", JSON.parse(event.data)));
   source.addEventListener("station", (event) => receive("station", JSON.parse(event.data)));
+  source.addEventListener("zone_set", (event) => receive("zone_set", JSON.parse(event.data)));
   source.addEventListener("snapshot_end", () => {
     forgetUnsent();
     snapshotDone = true;
@@ -455,11 +490,16 @@ function receive(kind, object) {
   if (kind === "robot") {
     const before = robots.get(object.name);
     if (!before || deleted || mapOf(before) !== mapOf(object)) changed.maps = true;
+    const held = (robot) => JSON.stringify(robot?.status?.zone_access?.held ?? []);
+    if (held(before) !== (deleted ? "[]" : held(object))) changed.zoneHolders = true;
     deleted ? robots.delete(object.name) : robots.set(object.name, object);
     changed.robots.add(object.name);
   } else if (kind === "station") {
     deleted ? stations.delete(object.name) : stations.set(object.name, object);
     changed.stations.add(object.name);
+  } else if (kind === "zone_set") {
+    deleted ? zoneSets.delete(object.name) : zoneSets.set(object.name, object);
+    changed.zoneSets.add(object.name);
   } else {
     // A mission given back to assignment leaves its robot (robot null): that robot is redrawn too.
     const robotBefore = missions.get(object.name)?.robot ?? null;
@@ -486,6 +526,9 @@ function forgetUnsent() {
   for (const [name, station] of stations) {
     if (!received.station.has(name)) receive("station", { ...station, lifecycle: "DELETED" });
   }
+  for (const [name, zoneSet] of zoneSets) {
+    if (!received.zone_set.has(name)) receive("zone_set", { ...zoneSet, lifecycle: "DELETED" });
+  }
 }
 
 function trimMissions() {
@@ -509,6 +552,11 @@ function flush() {
   frame = 0;
   trimMissions();
   if (changed.maps) updateMapChoice();
+  if (changed.zoneHolders) {
+    updateZoneHolders();
+    for (const name of zoneSets.keys()) changed.zoneSets.add(name);
+  }
+  for (const name of changed.zoneSets) drawZoneSet(name);
   for (const name of changed.stations) drawStation(name);
   for (const name of changed.robots) drawRobot(name);
   if (fitPending && snapshotDone && markers.size) {
@@ -530,7 +578,18 @@ function flush() {
   changed.missions.clear();
   changed.missionRobots.clear();
   changed.stations.clear();
-  changed.maps = changed.list = changed.panel = false;
+  changed.zoneSets.clear();
+  changed.maps = changed.list = changed.panel = changed.zoneHolders = false;
+}
+
+function updateZoneHolders() {
+  zoneHolders.clear();
+  for (const [name, robot] of robots) {
+    for (const zone of robot.status.zone_access?.held ?? []) {
+      const key = `${zone.map_id}/${zone.zone_id}`;
+      zoneHolders.set(key, [...(zoneHolders.get(key) ?? []), name]);
+    }
+  }
 }
 
 function drawCounts() {

@@ -4,11 +4,9 @@ import pytest
 
 from access.models import WriteRecord
 from robots.models import Robot
-from tests.factories import RobotFactory
+from tests.factories import CAN_CHARGE, RobotFactory
 
 pytestmark = pytest.mark.django_db
-
-CAN_CHARGE = {"protocolFeatures": {"agvActions": [{"actionType": "startCharging"}]}}
 
 
 def test_a_robot_that_can_charge_is_asked_to_and_the_write_recorded(api):

@@ -29,7 +29,7 @@ def test_returns_the_robot_with_its_status(api):
         position_initialized=True,
         maps=[{"map_id": "map", "map_version": "1", "map_status": "ENABLED", "map_description": None}],
         zone_sets=[{"map_id": "map", "zone_set_id": "floor1-v1", "zone_set_status": "ENABLED"}],
-        factsheet={"typeSpecification": {"supportedZones": ["RELEASE", "BLOCKED"]}},
+        supported_zones=["RELEASE", "BLOCKED"],
         zone_access={"held": [{"map_id": "map", "zone_id": "aisle"}], "waiting": []},
     )
 

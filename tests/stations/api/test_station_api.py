@@ -1,12 +1,17 @@
 """GET/POST /station, GET/PUT/DELETE /station/{name}: the shape, naming, defaults, filters, every validation
 rule, and the write records (real PostgreSQL)."""
 
+import json
 import re
+from pathlib import Path
 
 import pytest
+from django.utils import timezone
 
 from access.models import WriteRecord
+from robots.models import Robot
 from stations.models import MAX_CAPACITY, Station
+from tests.factories import CAN_CHARGE, RobotFactory
 
 pytestmark = pytest.mark.django_db
 
@@ -16,6 +21,7 @@ CHARGER = {
     "pose": {"x": 1.0, "y": 2.0, "theta": 0.5, "map_id": "map"},
 }
 GENERATED_NAME = re.compile(r"[a-z2-7]{26}")
+README = (Path(__file__).resolve().parents[3] / "README.md").read_text()
 
 
 def test_a_charger_is_created_with_the_shape_of_robots_and_missions(api):
@@ -165,3 +171,35 @@ def test_a_map_id_as_long_as_any_text_is_stored(api, settings):
 
     assert response.status_code == 200, response.content
     assert api.get(f"/station?map_id={long_map}").json()[0]["pose"]["map_id"] == long_map
+
+
+def readme_charging_commands() -> list[tuple[str, str, dict | None]]:
+    """The curl commands of README.md's "Stations: charging and parking" example: (method, path, body)."""
+    section = README.split("### Stations: charging and parking", 1)[1].split("\n### ", 1)[0]
+    block = section.split("```sh\n", 1)[1].split("```", 1)[0].replace("\\\n", " ")
+    commands = []
+    for line in block.splitlines():
+        method = re.search(r"-X (\w+)", line)
+        path = re.search(r"'?localhost:5000(/[^\s']*)", line)
+        body = re.search(r"-d '([^']*)'", line)
+        assert path, line
+        commands.append((method[1] if method else "GET", path[1], json.loads(body[1]) if body else None))
+    return commands
+
+
+def test_the_readme_charging_example_is_accepted(api):
+    """The README's example, as a new user runs it under `make run`: carter01 created as "Try it" does,
+    online with the simulator's factsheet (which lists startCharging)."""
+    RobotFactory(name="carter01", online=True, factsheet=CAN_CHARGE, last_state_at=timezone.now())
+
+    commands = readme_charging_commands()
+
+    assert [method for method, _, _ in commands] == ["PUT", "POST", "POST", "GET", "GET"]
+    for method, path, body in commands:
+        if "/watch" in path:
+            continue  # a stream: tests/changes
+        response = api.generic(method, path, json.dumps(body) if body else "", "application/json")
+        assert response.status_code == 200, (method, path, response.content)
+    robot = Robot.objects.get(name="carter01")
+    assert (robot.battery_recommended_minimum, robot.battery_recommended_maximum) == (30.0, 95.0)
+    assert robot.charge_requested and Station.objects.filter(name="charger01", kind="CHARGER").exists()

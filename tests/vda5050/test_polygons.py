@@ -5,7 +5,7 @@ import random
 
 import pytest
 
-from dispatch.polygons import (
+from vda5050.polygons import (
     box_touches,
     contains,
     polygon_problem,

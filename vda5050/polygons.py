@@ -1,5 +1,6 @@
-"""Plane geometry of zones: whether a polygon is one a zone may have, and which points and segments of a
-route lie in or cross it. Pure; points are (x, y) in metres on one map.
+"""Plane geometry of VDA 5050 3.0 zones: whether a polygon is one a zone may have, and which points and
+segments of a route lie in or cross it. Pure; points are (x, y) in metres on one map. The fleet's access
+core (`dispatch.zones`) and the simulator's robots (`simulator.zones`) judge routes by the same rules.
 
 A point on a polygon's boundary counts as inside: a robot standing on a zone's edge is in its way.
 """
