@@ -76,11 +76,11 @@ def taps(*robots: str) -> Iterator[dict[str, Tap]]:
 
 
 def poses(tap: Tap) -> list[tuple[datetime, Point]]:
-    """Each state's time (the robot's clock: one machine) and position."""
+    """Each state's time (the robot's clock: one machine) and position (3.0: mobileRobotPosition)."""
     return [
-        (datetime.fromisoformat(state["timestamp"]), (state["agvPosition"]["x"], state["agvPosition"]["y"]))
+        (datetime.fromisoformat(state["timestamp"]), (position["x"], position["y"]))
         for state in tap.of("state")
-        if state.get("agvPosition")
+        if (position := state.get("agvPosition") or state.get("mobileRobotPosition"))
     ]
 
 
@@ -154,6 +154,36 @@ def test_a_robot_killed_inside_a_zone_frees_it_after_its_heartbeat_timeout(api, 
     assert get(api, "robot", stuck)["status"]["online"] is False
     # The plan lets the zone go on its next run after the robot left it, a moment after the mission ended.
     wait_robot(api, passing, zone_access={"held": [], "waiting": []})
+
+
+def test_a_2_x_and_a_3_0_robot_crossing_one_zone_share_its_grants_and_both_complete(api, simulator, unique):
+    """The 3.0 robot holds the zone set (its factsheet lists RELEASE), asks for the zone at its edge and is
+    answered on the responses topic; the 2.x robot is held back by its order: one set of grants."""
+    aisle = square(0, 0)
+    east, south = unique("east2"), unique("south3")
+    simulator(f"{east},-2,1", extra=MOTION)
+    simulator(f"{south},1,4,0,map,0,50,RobotCompany,{south},CARRIER,3.0.0", extra=MOTION)
+    create_robot(api, east)
+    create_robot(api, south, vda5050={"version": "3.0.0"})
+    wait_for(
+        lambda: get(api, "robot", south)["status"]["factsheet"]["supported_zones"] == ["RELEASE"],
+        message="the 3.0 robot's factsheet",
+    )
+    name = unique("mixed")
+    zone_set(api, name, {"aisle": aisle})
+    enabled = [{"map_id": "map", "zone_set_id": name, "zone_set_status": "ENABLED"}]
+    wait_for(
+        lambda: get(api, "robot", south)["status"]["zone_sets"] == enabled, message="zone set on the robot"
+    )
+
+    with taps(east, south) as recorded:
+        run_to_completion(api, unique, {east: [(4, 1)], south: [(1, -2)]})
+
+    together, seen = inside_together(recorded, aisle)
+    assert together == []
+    assert seen == {east, south}
+    asked = [r for state in recorded[south].of("state") for r in state.get("zoneRequests") or []]
+    assert {r["zoneId"] for r in asked} == {"aisle"}  # the 3.0 robot asked, and was let through
 
 
 def readme_bodies(section: str) -> list[dict[str, Any]]:
