@@ -156,34 +156,51 @@ def test_a_robot_killed_inside_a_zone_frees_it_after_its_heartbeat_timeout(api, 
     wait_robot(api, passing, zone_access={"held": [], "waiting": []})
 
 
-def test_a_2_x_and_a_3_0_robot_crossing_one_zone_share_its_grants_and_both_complete(api, simulator, unique):
-    """The 3.0 robot holds the zone set (its factsheet lists RELEASE), asks for the zone at its edge and is
-    answered on the responses topic; the 2.x robot is held back by its order: one set of grants."""
-    aisle = square(0, 0)
-    east, south = unique("east2"), unique("south3")
-    simulator(f"{east},-2,1", extra=MOTION)
-    simulator(f"{south},1,4,0,map,0,50,RobotCompany,{south},CARRIER,3.0.0", extra=MOTION)
-    create_robot(api, east)
-    create_robot(api, south, vda5050={"version": "3.0.0"})
-    wait_for(
-        lambda: get(api, "robot", south)["status"]["factsheet"]["supported_zones"] == ["RELEASE"],
-        message="the 3.0 robot's factsheet",
-    )
-    name = unique("mixed")
-    zone_set(api, name, {"aisle": aisle})
-    enabled = [{"map_id": "map", "zone_set_id": name, "zone_set_status": "ENABLED"}]
-    wait_for(
-        lambda: get(api, "robot", south)["status"]["zone_sets"] == enabled, message="zone set on the robot"
-    )
+# Where robots crossing the square at (0, 0) start and where they go: from the west, north, east and south.
+CROSSINGS = [((-2, 1), (4, 1)), ((1, 4), (1, -2)), ((4, 0.5), (-2, 0.5)), ((1.5, -2), (1.5, 4))]
 
-    with taps(east, south) as recorded:
-        run_to_completion(api, unique, {east: [(4, 1)], south: [(1, -2)]})
+
+@pytest.mark.parametrize(
+    "versions",
+    [("2.0.0", "3.0.0"), ("3.0.0", "3.0.0"), ("2.0.0", "3.0.0", "2.0.0", "3.0.0")],
+    ids=["2.x-3.0", "3.0-3.0", "two-of-each"],
+)
+def test_2_x_and_3_0_robots_crossing_one_zone_share_its_grants_and_all_complete(
+    api, simulator, unique, versions: tuple[str, ...]
+):
+    """A 3.0 robot holds the zone set (its factsheet lists RELEASE), asks for the zone at its edge and is
+    answered on the responses topic; a 2.x robot is held back by its order: one set of grants."""
+    aisle = square(0, 0)
+    robots = {unique(f"cross{index}v{version[0]}"): version for index, version in enumerate(versions)}
+    for (name, version), ((x, y), _) in zip(robots.items(), CROSSINGS, strict=False):
+        simulator(f"{name},{x},{y},0,map,0,50,RobotCompany,{name},CARRIER,{version}", extra=MOTION)
+        create_robot(api, name, vda5050={"version": version})
+    speaking_3_0 = [name for name, version in robots.items() if version == "3.0.0"]
+    for name in speaking_3_0:
+        wait_for(
+            lambda name=name: (
+                get(api, "robot", name)["status"]["factsheet"]["supported_zones"] == ["RELEASE"]
+            ),
+            message="the 3.0 robot's factsheet",
+        )
+    zone_set_name = unique("mixed")
+    zone_set(api, zone_set_name, {"aisle": aisle})
+    enabled = [{"map_id": "map", "zone_set_id": zone_set_name, "zone_set_status": "ENABLED"}]
+    for name in speaking_3_0:
+        wait_for(
+            lambda name=name: get(api, "robot", name)["status"]["zone_sets"] == enabled,
+            message="zone set on the robot",
+        )
+
+    with taps(*robots) as recorded:
+        run_to_completion(api, unique, {name: [to] for name, (_, to) in zip(robots, CROSSINGS, strict=False)})
 
     together, seen = inside_together(recorded, aisle)
     assert together == []
-    assert seen == {east, south}
-    asked = [r for state in recorded[south].of("state") for r in state.get("zoneRequests") or []]
-    assert {r["zoneId"] for r in asked} == {"aisle"}  # the 3.0 robot asked, and was let through
+    assert seen == set(robots)
+    for name in speaking_3_0:  # each 3.0 robot asked, and was let through
+        asked = [r for state in recorded[name].of("state") for r in state.get("zoneRequests") or []]
+        assert {r["zoneId"] for r in asked} == {"aisle"}
 
 
 def readme_bodies(section: str) -> list[dict[str, Any]]:
