@@ -134,6 +134,21 @@ def robot_charge_threshold_sql(robot: str) -> str:
     """
 
 
+def robots_column_write_sql(column: str, sql_type: str) -> str:
+    """Set `column` of many robots at once, each its own value (parameters: the names, the values as a
+    `sql_type` array). A robot a step or the bridge's flush holds is skipped, not waited for: a plan run
+    writes what its robots show, and the next run writes what this one skipped."""
+    return f"""
+    WITH given AS (SELECT * FROM unnest(%s::varchar[], %s::{sql_type}[]) AS g(name, value)),
+        free AS (
+            SELECT name FROM {Robot._meta.db_table} WHERE name IN (SELECT name FROM given)
+            FOR NO KEY UPDATE SKIP LOCKED
+        )
+    UPDATE {Robot._meta.db_table} AS r SET {column} = g.value
+    FROM given AS g WHERE r.name = g.name AND r.name IN (SELECT name FROM free)
+"""
+
+
 def binding_time(at: datetime) -> str:
     """A time in a mission's assignment record, as the API writes times."""
     return at.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")

@@ -25,7 +25,7 @@ from dispatch.vocabulary import Lifecycle, MissionPurpose, MissionState, RobotSt
 from kit.db import json_column, jsonb
 from kit.wake import request_steps
 from missions.models import Mission
-from missions.rows import can_charge_sql
+from missions.rows import can_charge_sql, robots_column_write_sql
 from missions.services import PRIORITY_MAX, mission_cancel, mission_create
 from missions.tuning import TRIP_RETRY_MAX_SECONDS, TRIP_RETRY_SECONDS
 from robots.models import InstantAction, Robot
@@ -103,17 +103,9 @@ STATION_ROBOTS_SQL = f"""
         ORDER BY m.queue_position DESC LIMIT 1
     ) AS park ON true
 """
-# Neither waits for a robot another transaction holds (a step, the bridge's flush): what it skips, the next
-# run writes. An operator's request ends once the robot holds a charger.
+# An operator's request ends once the robot holds a charger.
 _ROBOTS = Robot._meta.db_table
-CHARGING_WAITING_REASONS_SQL = f"""
-    WITH reasons AS (SELECT * FROM unnest(%s::varchar[], %s::text[]) AS w(name, reason)),
-        free AS (
-            SELECT name FROM {_ROBOTS} WHERE name IN (SELECT name FROM reasons) FOR NO KEY UPDATE SKIP LOCKED
-        )
-    UPDATE {_ROBOTS} AS r SET charging_waiting_reason = w.reason
-    FROM reasons AS w WHERE r.name = w.name AND r.name IN (SELECT name FROM free)
-"""
+CHARGING_WAITING_REASONS_SQL = robots_column_write_sql("charging_waiting_reason", "text")
 CHARGE_REQUESTS_END_SQL = f"""
     UPDATE {_ROBOTS} SET charge_requested = false
     WHERE name IN (

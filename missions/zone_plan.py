@@ -31,6 +31,7 @@ from dispatch.zones import RobotRoute, RoutePoint, Zone, ZoneDecision, ZoneKey, 
 from kit.db import json_column, jsonb
 from kit.wake import request_steps
 from missions.models import Mission
+from missions.rows import robots_column_write_sql
 from robots import livestate
 from robots.models import Robot
 from vda5050.codec import parse_state
@@ -83,15 +84,7 @@ REACH_DELETE_SQL = f"DELETE FROM {_REACH} WHERE robot = ANY(%s)"
 REACH_ORPHANS_DELETE_SQL = (
     f"DELETE FROM {_REACH} z WHERE NOT EXISTS (SELECT 1 FROM {_ROBOTS} r WHERE r.name = z.robot)"
 )
-# A robot a step or the bridge holds is skipped, not waited for: the next run writes what it skips.
-ZONE_ACCESS_SQL = f"""
-    WITH access AS (SELECT * FROM unnest(%s::varchar[], %s::jsonb[]) AS a(name, zone_access)),
-        free AS (
-            SELECT name FROM {_ROBOTS} WHERE name IN (SELECT name FROM access) FOR NO KEY UPDATE SKIP LOCKED
-        )
-    UPDATE {_ROBOTS} AS r SET zone_access = a.zone_access
-    FROM access AS a WHERE r.name = a.name AND r.name IN (SELECT name FROM free)
-"""
+ZONE_ACCESS_SQL = robots_column_write_sql("zone_access", "jsonb")
 EXPIRED = "EXPIRED"
 
 

@@ -103,18 +103,7 @@ def queue_assignment(
     if marked is None:
         return
     waits = [countdown, since_last / 1000, busy_for / 1000 if defer_while_busy else 0.0]  # PTTL: -2 if none
-    countdown = max(waits)
-    try:
-        app.send_task(
-            ASSIGN_TASK,
-            (),
-            queue=settings.STEP_QUEUE,
-            producer=_thread_producer(),
-            countdown=countdown or None,
-        )
-    except Exception:
-        livestate.round_trip([("DEL", ASSIGNMENT_MARKER_KEY)])  # a marker without its task blocks every run
-        raise
+    _send_run(ASSIGN_TASK, ASSIGNMENT_MARKER_KEY, countdown=max(waits))
 
 
 def queue_zones_plan() -> None:
@@ -128,17 +117,18 @@ def queue_zones_plan() -> None:
             raise reply
     if marked is None:
         return
-    countdown = max(since_last / 1000, 0.0)  # PTTL: -2 if none
+    _send_run(ZONES_TASK, ZONES_MARKER_KEY, countdown=max(since_last / 1000, 0.0))  # PTTL: -2 if none
+
+
+def _send_run(task: str, marker_key: str, *, countdown: float) -> None:
+    """Send a run task (assignment, zone plan) whose marker the caller has just set: if the send fails the
+    marker goes too, as a marker without its task would block every later run."""
     try:
         app.send_task(
-            ZONES_TASK,
-            (),
-            queue=settings.STEP_QUEUE,
-            producer=_thread_producer(),
-            countdown=countdown or None,
+            task, (), queue=settings.STEP_QUEUE, producer=_thread_producer(), countdown=countdown or None
         )
     except Exception:
-        livestate.round_trip([("DEL", ZONES_MARKER_KEY)])  # a marker without its task blocks every run
+        livestate.round_trip([("DEL", marker_key)])
         raise
 
 
