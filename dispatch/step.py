@@ -15,6 +15,7 @@ from dataclasses import replace
 from datetime import datetime, timedelta
 
 from dispatch import engine, faults
+from dispatch.ending import DEADLINE_PASSED, TIMED_OUT, end, finish
 from dispatch.held import FINAL, arrived_after_order
 from dispatch.instant import (
     cancel_of_order,
@@ -28,17 +29,15 @@ from dispatch.instant import (
 )
 from dispatch.records import ActionRecord, DispatchSettings, MissionRecord, Outgoing, RobotView, StepResult
 from dispatch.sent import SentOrder, build_order, order_update_for, sent_order, stored
-from dispatch.stations import CHARGING
+from dispatch.start import maps_missing_for, release_unaccepted, try_start
 from dispatch.vocabulary import (
-    DONE_STATES,
     FailureCategory,
     Lifecycle,
-    MissionPurpose,
     MissionState,
     NodeKind,
     RobotState,
 )
-from vda5050 import compat, maps, orders
+from vda5050 import compat, orders
 from vda5050 import state as vda_state
 from vda5050.models import (
     ActionStatus,
@@ -53,8 +52,6 @@ from vda5050.models import (
 PAUSE_ORDER = "pause_order"  # the reference's action that hands the robot to teleoperation
 ORDER_KINDS = frozenset({NodeKind.ROUTE, NodeKind.MOVE, NodeKind.ACTION})
 
-TIMED_OUT = "Mission timed out"
-DEADLINE_PASSED = "Mission deadline passed"
 ACTION_FAILURE = "Action failure"
 NO_POSITION = "Robot does not report its position"
 ZONE_WAITING = "Waiting for zone"  # a running route's waiting reason at a zone's edge: "Waiting for zone Z"
@@ -87,8 +84,8 @@ def step(
         mission = replace(mission)
         result.mission = mission
         if mission.state == MissionState.PENDING:
-            _try_start(result, robot, state, mission, now)
-        if mission.state == MissionState.RUNNING and not _release_unaccepted(result, robot, state, mission):
+            try_start(result, robot, state, mission, now)
+        if mission.state == MissionState.RUNNING and not release_unaccepted(result, robot, state, mission):
             _advance(result, robot, state, state_arrived_at, mission, now, settings)
         track_charging(result, state)  # a mission that ended at startCharging leaves its robot charging
     send_instant_actions(result, robot, state, now, settings)
@@ -176,162 +173,6 @@ def _reach_further(
     result.messages.append(Outgoing(update))
 
 
-# --- starting a queued mission -------------------------------------------------------------------------
-
-
-def _try_start(
-    result: StepResult, robot: RobotView, state: State | None, mission: MissionRecord, now: datetime
-) -> None:
-    if mission.lifecycle == Lifecycle.PENDING_DELETE:
-        result.delete_mission = True
-        return
-    if mission.needs_canceled:
-        _end(result, mission, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
-        return
-    if mission.deadline is not None and now >= mission.deadline:
-        _end(
-            result,
-            mission,
-            MissionState.FAILED,
-            now,
-            reason=DEADLINE_PASSED,
-            category=FailureCategory.DEADLINE,
-        )
-        return
-    charging_trip = mission.purpose == MissionPurpose.CHARGE
-    unfit = _why_unfit(robot, state, charging_trip=charging_trip)
-    if unfit is not None and mission.assignment:
-        result.release = unfit  # bound by assignment: another robot may run it now
-        mission.waiting_reason = unfit
-        return
-    reason = _why_not_start(result, robot, state, charging_trip=charging_trip) or _maps_missing(
-        state, mission
-    )
-    if reason is not None:
-        mission.waiting_reason = reason
-        return
-    mission.waiting_reason = None
-    mission.state = MissionState.RUNNING
-    mission.start_timestamp = now
-    mission.node_status = {
-        **mission.node_status,
-        engine.ROOT: {"state": MissionState.RUNNING, "error_msg": None},
-    }
-    result.robot_state = RobotState.ON_TASK
-
-
-def _release_unaccepted(
-    result: StepResult, robot: RobotView, state: State | None, mission: MissionRecord
-) -> bool:
-    """A mission assignment bound to the robot, started but not yet taken up (its first order never
-    accepted, no progress, no leaf ended), whose robot became unfit (`_why_unfit`) goes back to the pool
-    as if it had never started: PENDING, its tree's states new, no order. Its order is canceled on the robot
-    (at once if online, else when it comes back: the robot must never run it later); the leaf's attempt
-    count stays, so the next robot's order has an orderId of its own whatever the first one holds."""
-    unfit = _why_unfit(robot, state)
-    if unfit is None or not mission.assignment or not _not_taken_up(mission):
-        return False
-    try:
-        tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
-    except engine.TreeError:
-        return False  # the step fails it (`_advance`)
-    if robot.lifecycle != Lifecycle.ALIVE:
-        result.delete_robot = True  # as when it ends a running mission (`_ended_by_time_or_owner`)
-    elif mission.order is not None:
-        cancel_of_order(result, mission)
-    mission.state = MissionState.PENDING
-    mission.start_timestamp = None
-    mission.node_status = engine.initial_node_status(tree)
-    mission.current_node = 0
-    mission.order = None
-    mission.order_sent_at = None
-    mission.order_accepted = False
-    mission.progress = mission.progress_seen_at = None
-    mission.waiting_reason = unfit
-    if result.robot_state == RobotState.ON_TASK:
-        result.robot_state = RobotState.IDLE
-    result.release = unfit
-    return True
-
-
-def _not_taken_up(mission: MissionRecord) -> bool:
-    """The robot has done nothing of the running mission yet: at most its first order sent, never
-    accepted, no progress seen, no node of the tree ended, and no cancel or end asked for."""
-    return (
-        not mission.order_accepted
-        and mission.progress is None
-        and sum(mission.attempts.values()) <= 1
-        and not mission.needs_canceled
-        and mission.lifecycle == Lifecycle.ALIVE
-        and not any(status["state"] in DONE_STATES for status in mission.node_status.values())
-    )
-
-
-def _why_not_start(
-    result: StepResult, robot: RobotView, state: State | None, *, charging_trip: bool = False
-) -> str | None:
-    unfit = _why_unfit(robot, state, charging_trip=charging_trip)
-    if unfit is not None:
-        return unfit
-    assert state is not None  # a robot without a state is offline
-    if result.robot_state == RobotState.TELEOP:
-        return "Robot is in teleop"
-    if result.robot_state == RobotState.CHARGING:
-        return CHARGING  # until its charger's plan sends stopCharging (`dispatch.stations`)
-    if pending_action(result, ActionType.CANCEL_ORDER) is not None:
-        return "Waiting for the robot to cancel its previous order"
-    if not vda_state.may_receive_orders(state):
-        return f"Robot is in {state.operating_mode.value} mode"
-    if not vda_state.is_idle(state):
-        return "Robot is busy with an earlier order"
-    return None
-
-
-def _why_unfit(robot: RobotView, state: State | None, *, charging_trip: bool = False) -> str | None:
-    """Why the robot cannot take a mission until something outside the mission changes: it is being
-    deleted, offline, below its critical battery level or due to charge (unless the mission is its trip to
-    a charger) or reports a FATAL error of its own. A mission assignment bound to it goes back to the pool
-    (`StepResult.release`)."""
-    if robot.lifecycle != Lifecycle.ALIVE:
-        return "Robot is being deleted"
-    if not robot.online or state is None:
-        return "Robot is offline"
-    charge = state.battery_state.battery_charge
-    if charge < robot.battery_critical_level and not charging_trip:
-        return f"Battery {charge:g}% is below the robot's critical level {robot.battery_critical_level:g}%"
-    threshold = robot.charge_threshold
-    if threshold is not None and charge <= threshold and not charging_trip:
-        return f"Battery {charge:g}% is due to charge (at or below {threshold:g}%): it charges first"
-    # A FATAL error about an earlier order ended that order's leaf; one about nothing in particular means
-    # the robot itself cannot work until someone fixes it.
-    fatal = [error for error in vda_state.fatal_errors(state) if not error.error_references]
-    if fatal:
-        return f"Robot reports a FATAL error: {describe(fatal)}"
-    return None
-
-
-def _maps_missing(state: State | None, mission: MissionRecord) -> str | None:
-    """Why a mission waits for maps: its route waypoints name a map the robot reports no ENABLED version
-    of (a robot that reports no maps at all is not held, `vda5050.maps.enabled_map_ids`). A tree that does
-    not parse is the step's to fail, not this check's."""
-    if state is None or maps.enabled_map_ids(state) is None:
-        return None  # no maps reported: nothing to wait for, and no tree to parse
-    try:
-        tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
-    except engine.TreeError:
-        return None
-    return _maps_missing_for(state, [node for node in tree.nodes if node.kind == NodeKind.ROUTE])
-
-
-def _maps_missing_for(state: State, leaves: list[engine.Node]) -> str | None:
-    missing = maps.maps_not_enabled(
-        state, [map_id for leaf in leaves for map_id in maps.waypoint_map_ids(leaf.params["waypoints"])]
-    )
-    if not missing:
-        return None
-    return f"Waiting for map {', '.join(missing)} to be enabled on the robot"
-
-
 # --- advancing a running mission ----------------------------------------------------------------------
 
 
@@ -347,7 +188,7 @@ def _advance(
     try:
         tree = engine.apply_route_updates(engine.parse_tree(mission.mission_tree), mission.update_nodes)
     except engine.TreeError as exc:
-        _end(result, mission, MissionState.FAILED, now, reason=str(exc), category=FailureCategory.ROBOT_APP)
+        end(result, mission, MissionState.FAILED, now, reason=str(exc), category=FailureCategory.ROBOT_APP)
         return
     if _ended_by_time_or_owner(result, robot, state, mission, tree, now):
         return
@@ -383,7 +224,7 @@ def _ended_by_time_or_owner(
         return False
     if _order_active(state, mission) and not result.delete_robot:
         cancel_of_order(result, mission)
-    _finish(result, mission, tree, MissionState.FAILED, now, reason=reason, category=category)
+    finish(result, mission, tree, MissionState.FAILED, now, reason=reason, category=category)
     return True
 
 
@@ -707,10 +548,10 @@ def _cancel(
 ) -> None:
     """A canceled running mission ends CANCELED once the robot has stopped its order (or had none)."""
     if not _order_active(state, mission) or _current_leaf_kind(tree, mission) not in ORDER_KINDS:
-        _finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
+        finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
         return
     if cancel_of_order(result, mission).status in FINAL:
-        _finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
+        finish(result, mission, tree, MissionState.CANCELED, now, category=FailureCategory.CANCELED)
 
 
 def _current_leaf_kind(tree: engine.Tree, mission: MissionRecord) -> str | None:
@@ -733,7 +574,7 @@ def _tick(
     if tick.current_node is not None:
         mission.current_node = tick.current_node
     if tick.mission_state != MissionState.RUNNING:
-        _end(
+        end(
             result,
             mission,
             tick.mission_state,
@@ -774,7 +615,7 @@ def _tick(
         return
     if leaf.kind == NodeKind.ROUTE:
         # A map disabled or deleted since the mission started, or named by a route update: the leaf waits.
-        mission.waiting_reason = _maps_missing_for(state, [leaf])
+        mission.waiting_reason = maps_missing_for(state, [leaf])
         if mission.waiting_reason is not None:
             return
     pose = vda_state.robot_telemetry(state).pose
@@ -880,7 +721,7 @@ def _extend(
         or following.kind != NodeKind.ROUTE
         or not following.params["waypoints"]
         or following.name in mission.attempts
-        or _maps_missing_for(state, [following]) is not None
+        or maps_missing_for(state, [following]) is not None
     ):
         return
     update = order_update_for(mission.name, sent.stored, following, attempt=0)
@@ -933,59 +774,3 @@ def _restart_updated_leaf(
     mission.order = None
     mission.order_accepted = False
     return True
-
-
-# --- ending ---------------------------------------------------------------------------------------------
-
-
-def _finish(
-    result: StepResult,
-    mission: MissionRecord,
-    tree: engine.Tree,
-    final_state: str,
-    now: datetime,
-    *,
-    reason: str | None = None,
-    category: str | None = None,
-) -> None:
-    """End a running mission from outside the tree (cancel, timeout, deadline, robot deleted)."""
-    finished = engine.finish(tree, mission.node_status, state=final_state, error_msg=reason)
-    mission.node_status = finished.node_status
-    if finished.current_node is not None:
-        mission.current_node = finished.current_node
-    _end(result, mission, final_state, now, reason=reason, category=category)
-
-
-def _end(
-    result: StepResult,
-    mission: MissionRecord,
-    final_state: str,
-    now: datetime,
-    *,
-    reason: str | None = None,
-    category: str | None = None,
-) -> None:
-    was_running = mission.state == MissionState.RUNNING
-    mission.state = final_state
-    mission.end_timestamp = now
-    mission.waiting_reason = None
-    mission.order = None
-    mission.node_status = {
-        **mission.node_status,
-        engine.ROOT: {**mission.node_status.get(engine.ROOT, {"error_msg": None}), "state": final_state},
-    }
-    if reason is not None:
-        mission.failure_reason = reason
-    if final_state == MissionState.COMPLETED:
-        mission.failure_reason = None  # no stale reason from a branch a selector recovered from
-    if final_state != MissionState.COMPLETED:
-        mission.failure_category = category or mission.failure_category or FailureCategory.ROBOT_APP
-    if (
-        was_running
-        and result.robot_state in (RobotState.ON_TASK, RobotState.TELEOP)
-        and not result.switch_teleop
-    ):
-        # A pause_order's teleop ends with its mission; an API teleop does not.
-        result.robot_state = RobotState.IDLE
-    if mission.lifecycle == Lifecycle.PENDING_DELETE:
-        result.delete_mission = True

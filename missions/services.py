@@ -20,9 +20,9 @@ from access.choices import WriteAction
 from access.models import WriteRecord
 from access.services import write_record, writes_via_now
 from dispatch.assignment import NOT_YET_ASSIGNED, assign, burst_hold, choices_of
+from dispatch.ending import DEADLINE_PASSED
 from dispatch.engine import ROOT, Tree, TreeError, initial_node_status, parse_tree, set_leaf_state
 from dispatch.records import MissionRecord
-from dispatch.step import DEADLINE_PASSED
 from kit.api.errors import ObjectError, UsageError
 from kit.api.names import object_name_check, object_name_for_create
 from kit.api.rows import lock_row

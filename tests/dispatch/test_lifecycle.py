@@ -6,8 +6,9 @@ from datetime import timedelta
 import pytest
 
 from dispatch import engine
+from dispatch.ending import DEADLINE_PASSED, TIMED_OUT
 from dispatch.records import ActionRecord
-from dispatch.step import DEADLINE_PASSED, PAUSE_ORDER, TIMED_OUT
+from dispatch.step import PAUSE_ORDER
 from dispatch.vocabulary import FailureCategory, Lifecycle, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,

@@ -5,8 +5,8 @@ from typing import Any
 
 import pytest
 
+from dispatch.ending import DEADLINE_PASSED
 from dispatch.stations import CHARGING
-from dispatch.step import DEADLINE_PASSED
 from dispatch.vocabulary import FailureCategory, Lifecycle, MissionPurpose, MissionState, RobotState
 from tests.dispatch.builders import (
     IDLE_STATE,
