@@ -91,7 +91,8 @@ ROBOT_FOR_STEP_SQL = f"""
     SELECT r.lifecycle, r.state, r.online, r.battery_critical_level, r.switch_teleop, r.instant_actions_key,
         r.instant_actions_key_source = '{SettingSource.OPERATOR}',
         NOT r.compatibility_rules @> '[{{"rule": "{compat.Rule.ORDER_UPDATE_NOT_EXECUTED}"}}]'::jsonb,
-        r.next_order_header_id, r.next_instant_actions_header_id, r.next_zone_set_header_id, r.outbox,
+        r.next_order_header_id, r.next_instant_actions_header_id, r.next_zone_set_header_id,
+        r.next_responses_header_id, r.outbox,
         {ZONE_SETS_ENABLED_SQL}, r.zone_set_moves, r.zone_set_moved_at,
         r.interface_name, r.manufacturer, r.serial_number, r.protocol_version,
         {robot_charge_threshold_sql("r")},
@@ -101,7 +102,7 @@ ROBOT_FOR_STEP_SQL = f"""
               AND (a.status IS NULL OR a.status NOT IN ({_FINAL_ACTION_STATUSES_SQL}))
         ),
         z.robot IS NOT NULL, z.order_id, z.release_through, z.waiting, z.responses, z.responses_version,
-        z.responses_sent, z.next_responses_header_id,
+        z.responses_sent,
         CASE WHEN z.robot IS NULL THEN ARRAY({ZONED_MAPS_SQL}) END
     FROM {Robot._meta.db_table} r LEFT JOIN {ZoneReachRow._meta.db_table} z ON z.robot = r.name
     WHERE r.name = %s FOR UPDATE OF r
@@ -227,16 +228,16 @@ class _RobotWire:
 OUTBOX_SQL = f"""
     UPDATE {Robot._meta.db_table}
     SET next_order_header_id = %s, next_instant_actions_header_id = %s, next_zone_set_header_id = %s,
-        outbox = %s
+        next_responses_header_id = %s, outbox = %s
     WHERE name = %s
 """
 
 
-# The responses topic's headerIds and the answers sent live on the robot's zone reach (`zones.plan`): only a
-# robot the zone plan answers gets any.
+# Which of the zone plan's answers went out lives on the robot's zone reach (`missions.zone_plan`); the
+# responses topic's headerIds, like every topic's, on the robot: a reach is deleted and made anew when zones
+# come and go, and a headerId must never go back (the robot, and Redis's publish claims, would drop them).
 RESPONSES_SENT_SQL = f"""
-    UPDATE {ZoneReachRow._meta.db_table} SET next_responses_header_id = %s, responses_sent = %s
-    WHERE robot = %s
+    UPDATE {ZoneReachRow._meta.db_table} SET responses_sent = %s WHERE robot = %s
 """
 
 
@@ -265,9 +266,7 @@ def _wire_messages(
         new.append({"topic": message.topic.value, "header_id": header_id, "payload": payload.decode()})
         outcome.header_ids.append(header_id)
     if any(message.topic == Topic.RESPONSES for message in outcome.messages[first:]):
-        cursor.execute(
-            RESPONSES_SENT_SQL, [wire.next_header_ids[Topic.RESPONSES], wire.responses_version, name]
-        )
+        cursor.execute(RESPONSES_SENT_SQL, [wire.responses_version, name])
     if new:
         cursor.execute(
             OUTBOX_SQL,
@@ -275,6 +274,7 @@ def _wire_messages(
                 wire.next_header_ids[Topic.ORDER],
                 wire.next_header_ids[Topic.INSTANT_ACTIONS],
                 wire.next_header_ids[Topic.ZONE_SET],
+                wire.next_header_ids[Topic.RESPONSES],
                 jsonb((unsent + new)[-OUTBOX_LIMIT:]),
                 name,
             ],
@@ -345,6 +345,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         next_order_header_id,
         next_instant_actions_header_id,
         next_zone_set_header_id,
+        next_responses_header_id,
         outbox,
         zone_sets_enabled,
         zone_set_moves,
@@ -359,7 +360,6 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
         responses,
         responses_version,
         responses_sent,
-        next_responses_header_id,
         zoned_maps,
     ) = row
     outcome.address = RobotAddress(*address)
@@ -370,7 +370,7 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
             Topic.ORDER: next_order_header_id,
             Topic.INSTANT_ACTIONS: next_instant_actions_header_id,
             Topic.ZONE_SET: next_zone_set_header_id,
-            Topic.RESPONSES: next_responses_header_id or 0,
+            Topic.RESPONSES: next_responses_header_id,
         },
         orjson.loads(outbox) if outbox is not None else [],
         published,

@@ -70,8 +70,8 @@ GRANTS_INSERT_SQL = f"""
 """
 REACH_UPSERT_SQL = f"""
     INSERT INTO {_REACH} (robot, order_id, release_through, waiting, responses, responses_version,
-        responses_sent, next_responses_header_id, updated_at)
-    SELECT name, order_id, through, waiting, responses, version, 0, 0, %s
+        responses_sent, updated_at)
+    SELECT name, order_id, through, waiting, responses, version, 0, %s
     FROM unnest(%s::varchar[], %s::text[], %s::integer[], %s::jsonb[], %s::jsonb[], %s::integer[])
         AS v(name, order_id, through, waiting, responses, version)
     ON CONFLICT (robot) DO UPDATE SET order_id = EXCLUDED.order_id,

@@ -65,6 +65,7 @@ class Robot(models.Model):
     next_order_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
     next_instant_actions_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
     next_zone_set_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
+    next_responses_header_id = models.BigIntegerField(default=0, db_default=0, editable=False)
     # The latest messages sent to the robot (topic, headerId, payload), kept until a later step knows they
     # went out: one killed before publishing leaves no headerId unsent (missions.robot_step._wire_messages).
     outbox = models.JSONField(null=True, blank=True, editable=False)

@@ -82,12 +82,11 @@ class ZoneReach(models.Model):
     release_through = models.IntegerField(null=True, blank=True)
     waiting = models.JSONField(default=list, blank=True, help_text="Zone ids the robot waits for.")
     # The answers to its 3.0 zoneRequests, [requestId, grantType] pairs; `responses_version` counts their
-    # changes, `responses_sent` is the version its step last sent on the responses topic, with headerId
-    # `next_responses_header_id` - 1 (the topic numbers its messages on its own).
+    # changes, `responses_sent` is the version its step last sent on the responses topic (whose headerIds
+    # are the robot's, `Robot.next_responses_header_id`).
     responses = models.JSONField(default=list, blank=True)
     responses_version = models.IntegerField(default=0)
     responses_sent = models.IntegerField(default=0)
-    next_responses_header_id = models.BigIntegerField(default=0)
     updated_at = models.DateTimeField(auto_now=True)
 
     def __str__(self) -> str:

@@ -23,7 +23,7 @@ from zones.models import ZoneSet
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
-UNSHOWN = importlib.import_module("changes.migrations.0012_robot_zone_set_distribution").UNSHOWN
+UNSHOWN = importlib.import_module("changes.migrations.0013_robot_responses_header_id_unshown").UNSHOWN
 ROBOT_UNSHOWN = UNSHOWN[Robot._meta.db_table][1]
 MISSION_UNSHOWN = UNSHOWN[Mission._meta.db_table][1]
 STATIONS_IN_FEED = importlib.import_module("changes.migrations.0005_stations")

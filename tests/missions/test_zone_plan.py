@@ -347,3 +347,29 @@ def test_3_0_zone_requests_are_answered_once_on_the_responses_topic_through_the_
     ]
     assert responses(robot_step(name=first.name)) == []  # sent once
     assert holders() == {("square", first.name)}
+
+
+def test_answers_after_the_zone_set_was_disabled_and_enabled_again_go_on_with_the_robots_header_ids(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    """The plan deletes a robot's reach while no zone is enabled; the responses topic's headerIds are the
+    robot's, so the answers after that go on from where they were (a robot, and the publisher's claims in
+    Redis, drop a headerId that goes back)."""
+    robot = make_robot(prefix="zone")
+    Robot.objects.filter(name=robot.name).update(protocol_version="3.0.0")
+    robot = Robot.objects.get(name=robot.name)
+    asks(robot, "r1", zone_set)
+    zones_plan_run()
+    before = robot_step(name=robot.name)
+
+    zone_set_disable(actor=TEST_ACTOR, zone_set=zone_set)
+    zones_plan_run()
+    assert not ZoneReach.objects.exists()
+    zone_set_enable(actor=TEST_ACTOR, zone_set=zone_set)
+    zones_plan_run()
+    after = robot_step(name=robot.name)
+
+    assert responses(before) == responses(after) == [("r1", "GRANTED")]
+    assert [m.header_id for m in before.wire if m.topic == Topic.RESPONSES] == [0]
+    # (Its outbox sends the first again too: in this test nothing publishes, so it may not have gone out.)
+    assert [m.header_id for m in after.wire if m.topic == Topic.RESPONSES][-1] == 1
