@@ -37,6 +37,7 @@ from dispatch.vocabulary import (
     NodeKind,
     RobotState,
 )
+from dispatch.zones import answerable
 from vda5050 import compat, orders
 from vda5050 import state as vda_state
 from vda5050.models import (
@@ -114,8 +115,10 @@ def _zone_news(
         moved = progress != (before.progress or {}).get("lastNodeSequenceId")
         if moved or _order_id(after) != _order_id(before) or after.done:
             result.zones_plan = True
-    if state is not None and state.zone_requests is not None:
-        asked = {request.request_id for request in state.zone_requests if request.request_status != "EXPIRED"}
+    if (
+        robot.online and state is not None and state.zone_requests is not None
+    ):  # the plan answers online robots
+        asked = {request.request_id for request in state.zone_requests if answerable(request)}
         if asked != {request for request, _ in reach.responses}:
             result.zones_plan = True
 

@@ -32,10 +32,7 @@ from dataclasses import dataclass
 
 from vda5050.models import Request
 from vda5050.polygons import Point, box_touches, contains
-from vda5050.zones import GrantType
-
-ACCESS = "ACCESS"  # the zone request type this core answers (REPLANNING is COORDINATED_REPLANNING's)
-EXPIRED = "EXPIRED"  # a request whose lease ran out: it holds nothing any more
+from vda5050.zones import GrantType, RequestStatus, RequestType
 
 ZoneKey = tuple[str, str]  # (map_id, zone_id): zone ids are unique within a map's zone set
 
@@ -273,14 +270,20 @@ def zone_requests(
     taken: list[ZoneRequest] = []
     rejected: list[str] = []
     for request in requests:
-        if request.request_status == EXPIRED or request.zone_id is None:
+        if not answerable(request):
             continue
         map_id = maps.get(request.zone_set_id or "")
-        if request.request_type != ACCESS or map_id is None:
+        if request.request_type != RequestType.ACCESS or map_id is None:
             rejected.append(request.request_id)
         else:
             taken.append(ZoneRequest(request.request_id, map_id, request.zone_id))
     return tuple(taken), tuple(rejected)
+
+
+def answerable(request: Request) -> bool:
+    """A zone request the core answers (taken or REJECTED): one for a zone (an edge request names none) whose
+    lease has not EXPIRED."""
+    return request.request_status != RequestStatus.EXPIRED and request.zone_id is not None
 
 
 def zones_at(point: RoutePoint, zones: Iterable[Zone]) -> Iterable[ZoneKey]:

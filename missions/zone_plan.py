@@ -85,7 +85,6 @@ REACH_ORPHANS_DELETE_SQL = (
     f"DELETE FROM {_REACH} z WHERE NOT EXISTS (SELECT 1 FROM {_ROBOTS} r WHERE r.name = z.robot)"
 )
 ZONE_ACCESS_SQL = robots_column_write_sql("zone_access", "jsonb")
-EXPIRED = "EXPIRED"
 
 
 @dataclass(frozen=True)

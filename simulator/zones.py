@@ -17,7 +17,6 @@ Lease expiry is not simulated: a grant lasts until the robot leaves.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import StrEnum
 
 from simulator.actions import ActionRun, UnusableAction, parameters_of, require
 from simulator.errors import ACTION_ERROR, DUPLICATE_ZONE_SET, UNKNOWN_ZONE_SET, VALIDATION_ERROR, ErrorReport
@@ -27,17 +26,7 @@ from vda5050.errors import ProtocolError
 from vda5050.models import ActionType, MapStatus, Request, ZoneSetDefinition, ZoneSetState
 from vda5050.polygons import Point, Polygon, contains, segment_touches
 from vda5050.topics import Topic
-from vda5050.zones import ZONE_SET_ID, GrantType, ZoneType
-
-ACCESS = "ACCESS"  # the requestType of a zone request
-
-
-class RequestStatus(StrEnum):
-    """The 3.0 state's requestStatus values the robot reports (EXPIRED: leases are not simulated)."""
-
-    REQUESTED = "REQUESTED"
-    GRANTED = "GRANTED"
-    REVOKED = "REVOKED"
+from vda5050.zones import ZONE_SET_ID, GrantType, RequestStatus, RequestType, ZoneType
 
 
 @dataclass
@@ -52,7 +41,7 @@ class ZoneRequest:
     def report(self) -> Request:
         return Request(
             request_id=self.request_id,
-            request_type=ACCESS,
+            request_type=RequestType.ACCESS,
             zone_id=self.zone_id,
             zone_set_id=self.zone_set_id,
             request_status=self.status,

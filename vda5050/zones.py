@@ -144,6 +144,22 @@ def _camel(snake: str) -> str:
     return head + "".join(word.capitalize() for word in rest)
 
 
+class RequestType(StrEnum):
+    """What a 3.0 robot's zone request (state ``zoneRequests``) asks for."""
+
+    ACCESS = "ACCESS"
+    REPLANNING = "REPLANNING"  # COORDINATED_REPLANNING zones'
+
+
+class RequestStatus(StrEnum):
+    """Where a 3.0 robot's zone or edge request stands, as the robot reports it."""
+
+    REQUESTED = "REQUESTED"
+    GRANTED = "GRANTED"
+    REVOKED = "REVOKED"
+    EXPIRED = "EXPIRED"  # its lease ran out: it holds nothing any more
+
+
 class GrantType(StrEnum):
     """The fleet control's answer to a zone request (the ``responses`` topic)."""
 

@@ -7,8 +7,9 @@ from dataclasses import replace
 from datetime import timedelta
 
 from dispatch.records import ZoneReach
-from dispatch.step import ZONE_WAITING
+from dispatch.step import ZONE_WAITING, step
 from tests.dispatch.builders import (
+    NOW,
     SETTINGS,
     Dispatcher,
     cancel_actions,
@@ -20,7 +21,7 @@ from tests.dispatch.builders import (
     route,
     wire,
 )
-from vda5050.models import EdgeState, NodeState, OrderContent, State
+from vda5050.models import EdgeState, NodeState, OrderContent, Request, State
 
 ORDER = "m1-n0-r0"
 R = route("r", (1.0, 0.0), (2.0, 0.0), (3.0, 0.0))  # nodes 0 (the start), 2, 4, 6
@@ -107,3 +108,45 @@ def test_a_robot_standing_with_released_nodes_ahead_is_stalled_zones_or_not() ->
     result = dispatcher.step(standing, after=STALL.total_seconds())
 
     assert cancel_actions(result.actions)
+
+
+def asking_for_a_plan(requests: list[Request], answered: tuple[str, ...], *, online: bool = True) -> bool:
+    """Whether an idle robot's step asks for a zone plan run, given its state's requests and the requestIds
+    the plan answered."""
+    reach = ZoneReach(responses=tuple((request_id, "GRANTED") for request_id in answered))
+    state = robot_state().model_copy(update={"zone_requests": requests})
+    result = step(
+        now=NOW,
+        robot=robot_view(zone_reach=reach, online=online),
+        state=state,
+        state_arrived_at=NOW,
+        mission=None,
+        actions=[],
+        settings=SETTINGS,
+    )
+    return result.zones_plan
+
+
+def zone_request(request_id: str, zone_id: str | None = "aisle", status: str = "REQUESTED") -> Request:
+    request_type = "ACCESS" if zone_id is not None else "CORRIDOR"
+    return Request(
+        request_id=request_id,
+        request_type=request_type,
+        request_status=status,
+        zone_id=zone_id,
+        zone_set_id="set" if zone_id is not None else None,
+        edge_id=None if zone_id is not None else "e1",
+        sequence_id=None if zone_id is not None else 1,
+    )
+
+
+def test_a_step_asks_for_a_plan_run_only_for_zone_requests_the_plan_answers_and_has_not() -> None:
+    answered = zone_request("r1")
+    assert not asking_for_a_plan([answered], ("r1",))
+    assert asking_for_a_plan([answered, zone_request("r2")], ("r1",))  # a new request
+    assert asking_for_a_plan([], ("r1",))  # an answer to a request the robot no longer makes
+    # Neither an edge request nor one EXPIRED is ever answered: each state would ask again.
+    assert not asking_for_a_plan([answered, zone_request("e1", zone_id=None)], ("r1",))
+    assert not asking_for_a_plan([answered, zone_request("r3", status="EXPIRED")], ("r1",))
+    # The plan answers online robots only.
+    assert not asking_for_a_plan([answered, zone_request("r2")], ("r1",), online=False)
