@@ -262,14 +262,13 @@ def _with_latest_states(robots: list[_Robot], enabled: dict[str, str]) -> dict[s
 def _grants_write(
     cursor: CursorWrapper, grants: list[tuple[Any, ...]], decision: ZoneDecision, now: datetime
 ) -> None:
-    """The grants as decided: those let go or revoked deleted, the new ones inserted (a grant that stands
-    keeps its granted_at)."""
+    """The grants as decided: those let go deleted, the new ones inserted. A grant that stands keeps its
+    granted_at, and its revocation: a robot revoked inside the zone holds it until it has left, answered
+    REVOKED at every run meanwhile (`dispatch.zones.decide`), not granted again by the run after."""
     wanted = {(key, robot) for key, names in decision.holders.items() for robot in names}
-    standing = {((map_id, zone_id), robot) for _, map_id, zone_id, robot, revoked in grants if not revoked}
+    standing = {((map_id, zone_id), robot) for _, map_id, zone_id, robot, _ in grants}
     gone = [
-        grant_id
-        for grant_id, map_id, zone_id, robot, revoked in grants
-        if revoked or ((map_id, zone_id), robot) not in wanted
+        grant_id for grant_id, map_id, zone_id, robot, _ in grants if ((map_id, zone_id), robot) not in wanted
     ]
     if gone:
         cursor.execute(GRANTS_DELETE_SQL, [gone])

@@ -300,10 +300,18 @@ def test_a_robot_held_back_when_its_zone_set_went_is_stepped_at_every_run_until_
     assert not orders_held_back()
 
 
-def asks(robot: Robot, request_id: str, zone_set: ZoneSet, *, header_id: int = 2) -> None:
-    """The 3.0 robot, idle at (5, 5), asks for access to the square."""
+def asks(
+    robot: Robot,
+    request_id: str,
+    zone_set: ZoneSet,
+    *,
+    header_id: int = 2,
+    where: tuple[float, float] = (5.0, 5.0),
+) -> None:
+    """The 3.0 robot, idle at `where` (outside the square unless said), asks for access to the square."""
+    x, y = where
     Robot.objects.filter(name=robot.name).update(
-        online=True, pose_x=5.0, pose_y=5.0, pose_map_id="map", last_state_at=timezone.now()
+        online=True, pose_x=x, pose_y=y, pose_map_id="map", last_state_at=timezone.now()
     )
     request = Request(
         request_id=request_id,
@@ -312,7 +320,7 @@ def asks(robot: Robot, request_id: str, zone_set: ZoneSet, *, header_id: int = 2
         zone_id="square",
         zone_set_id=zone_set.name,
     )
-    state = robot_state(pose=(5.0, 5.0, 0.0, "map")).model_copy(update={"zone_requests": [request]})
+    state = robot_state(pose=(x, y, 0.0, "map")).model_copy(update={"zone_requests": [request]})
     put_state(robot, header_id=header_id, state=state)
 
 
@@ -373,3 +381,25 @@ def test_answers_after_the_zone_set_was_disabled_and_enabled_again_go_on_with_th
     assert [m.header_id for m in before.wire if m.topic == Topic.RESPONSES] == [0]
     # (Its outbox sends the first again too: in this test nothing publishes, so it may not have gone out.)
     assert [m.header_id for m in after.wire if m.topic == Topic.RESPONSES][-1] == 1
+
+
+def test_a_3_0_robot_revoked_inside_the_zone_is_answered_revoked_and_holds_it_until_it_has_left(
+    zone_set: ZoneSet, make_robot: MakeRobot
+) -> None:
+    robot = make_robot(prefix="zone")
+    Robot.objects.filter(name=robot.name).update(protocol_version="3.0.0")
+    robot = Robot.objects.get(name=robot.name)
+    asks(robot, "r1", zone_set, where=(1.0, 1.0))
+    zones_plan_run()
+    assert responses(robot_step(name=robot.name)) == [("r1", "GRANTED")]
+
+    zone_grant_revoke(actor=TEST_ACTOR, zone_set=zone_set, robot=robot.name, zone_id="square")
+    zones_plan_run()
+    assert responses(robot_step(name=robot.name)) == [("r1", "REVOKED")]
+    zones_plan_run()  # the next runs keep the revocation while it is inside: no GRANTED again
+    assert responses(robot_step(name=robot.name)) == []
+    assert holders() == {("square", robot.name)}
+
+    asks(robot, "r1", zone_set, header_id=3, where=(5.0, 5.0))  # it left (and still reports its request)
+    zones_plan_run()
+    assert not ZoneGrant.objects.filter(robot=robot.name, revoked_at__isnull=False).exists()
