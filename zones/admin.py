@@ -12,12 +12,11 @@ from django.utils.safestring import SafeString
 
 from access.authentication import request_actor
 from kit.admin import ServiceAdmin, SpecAdminForm, call_service_for_each, html_table, spec_validated
-from kit.api.errors import UsageError
 from zones.api.serializers import ZoneSetSpecSerializer
 from zones.models import ZoneGrant, ZoneSet
-from zones.selectors import zone_grants, zone_set_enabled_on
+from zones.selectors import zone_grants
 from zones.services import (
-    zone_grant_revoke,
+    zone_grant_revoke_for,
     zone_set_create,
     zone_set_delete,
     zone_set_disable,
@@ -113,14 +112,6 @@ class ZoneSetAdmin(ServiceAdmin):
         )
 
 
-def _grant_revoke(actor: str, grant: ZoneGrant) -> None:
-    """A grant's revoke through the service, with its map's enabled zone set (none: it goes anyway)."""
-    zone_set = zone_set_enabled_on(map_id=grant.map_id)
-    if zone_set is None:
-        raise UsageError(f"Map {grant.map_id} has no enabled zone set: the grant of {grant} goes by itself.")
-    zone_grant_revoke(actor=actor, zone_set=zone_set, robot=grant.robot, zone_id=grant.zone_id)
-
-
 @admin.register(ZoneGrant)
 class ZoneGrantAdmin(admin.ModelAdmin):
     """Who holds which RELEASE zone, as the zone plan decided; an operator may take a grant back (the
@@ -148,5 +139,9 @@ class ZoneGrantAdmin(admin.ModelAdmin):
     )
     def revoke(self, request: HttpRequest, queryset: QuerySet[ZoneGrant]) -> None:
         call_service_for_each(
-            self, request, queryset, lambda grant: _grant_revoke(request_actor(request), grant), "Revoked"
+            self,
+            request,
+            queryset,
+            lambda grant: zone_grant_revoke_for(actor=request_actor(request), grant=grant),
+            "Revoked",
         )

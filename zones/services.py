@@ -14,6 +14,7 @@ from kit.api.names import object_name_for_create
 from kit.api.rows import lock_row
 from kit.wake import request_zones_plan
 from zones.models import ZoneGrant, ZoneSet
+from zones.selectors import zone_set_enabled_on
 
 
 def zone_set_create(*, actor: str, name: str | None, prefix: str | None, spec: Mapping[str, Any]) -> ZoneSet:
@@ -86,7 +87,13 @@ def zone_grant_revoke(*, actor: str, zone_set: ZoneSet, robot: str, zone_id: str
     """Take back the grant of zone `zone_id` of the enabled `zone_set` that `robot` holds; the next zone plan
     run (asked for here) applies it (`dispatch.zones.decide`): a robot not yet in the zone loses it and waits,
     one already in it (or whose released base crosses it) keeps it until it has left, 3.0 robots are answered
-    REVOKED. A zone the set lacks, or one the robot holds no grant of, is refused."""
+    REVOKED. A zone set not enabled (its map's grants are the enabled set's), a zone the set lacks, or one
+    the robot holds no grant of, is refused."""
+    if not zone_set.enabled:
+        raise UsageError(
+            f"Zone set {zone_set.name} is not enabled: "
+            f"the grants of map {zone_set.map_id} are its enabled set's."
+        )
     if not any(zone["zone_id"] == zone_id for zone in zone_set.zones):
         raise UsageError(f"Zone set {zone_set.name} has no zone {zone_id}.")
     with transaction.atomic():
@@ -97,3 +104,11 @@ def zone_grant_revoke(*, actor: str, zone_set: ZoneSet, robot: str, zone_id: str
             raise UsageError(f"Robot {robot} holds no grant of zone {zone_id} of zone set {zone_set.name}.")
         write_record(actor=actor, action=WriteAction.ZONE_GRANT_REVOKE, object_name=zone_set.name)
         request_zones_plan()
+
+
+def zone_grant_revoke_for(*, actor: str, grant: ZoneGrant) -> None:
+    """`zone_grant_revoke` of a grant as stored (the admin's action), through its map's enabled zone set."""
+    zone_set = zone_set_enabled_on(map_id=grant.map_id)
+    if zone_set is None:
+        raise UsageError(f"Map {grant.map_id} has no enabled zone set: the grant of {grant} goes by itself.")
+    zone_grant_revoke(actor=actor, zone_set=zone_set, robot=grant.robot, zone_id=grant.zone_id)

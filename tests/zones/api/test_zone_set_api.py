@@ -343,15 +343,24 @@ def test_a_grant_is_revoked_through_the_api_and_unknown_ones_are_a_400(api):
     unknown_zone = api.post("/zone_set/floor/revoke", {"robot": "carter01", "zone_id": "nope"}, format="json")
     bad_body = api.post("/zone_set/floor/revoke", {"robot": "carter01"}, format="json")
     missing = api.post("/zone_set/nope/revoke", {"robot": "carter01", "zone_id": "aisle"}, format="json")
+    api.post("/zone_set", zone_set(name="floor-next"), format="json")  # same map and zones, not enabled
+    ZoneGrant.objects.create(map_id="map", zone_id="aisle", robot="carter02", granted_at=timezone.now())
+    disabled = api.post(
+        "/zone_set/floor-next/revoke", {"robot": "carter02", "zone_id": "aisle"}, format="json"
+    )
 
     assert (revoked.status_code, revoked.json()) == (
         200,
         {"detail": "Grant of zone aisle to carter01 is REVOKED"},
     )
-    assert ZoneGrant.objects.get().revoked_at is not None
+    assert ZoneGrant.objects.get(robot="carter01").revoked_at is not None
     assert (again.status_code, again.json()["error_code"]) == (400, "USAGE")
     assert "holds no grant" in again.json()["message"]
     assert (unknown_zone.status_code, unknown_zone.json()["error_code"]) == (400, "USAGE")
     assert bad_body.status_code == 400 and bad_body.json()["detail"][0]["loc"] == ["body", "zone_id"]
     assert missing.json() == {"detail": 'Did not find "zone_set" with name "nope"'}
+    assert (disabled.status_code, disabled.json()["error_code"]) == (400, "USAGE")
+    assert "floor-next is not enabled" in disabled.json()["message"]
+    assert ZoneGrant.objects.get(robot="carter02").revoked_at is None
     assert WriteRecord.objects.filter(action="zone_grant_revoke", object_name="floor").count() == 1
+    assert not WriteRecord.objects.filter(action="zone_grant_revoke", object_name="floor-next").exists()
