@@ -53,8 +53,9 @@ _MISSIONS = Mission._meta.db_table
 # latest charging trip's state, its failed charging trips since its last charged one (the backoff), since
 # when it idles (its last mission's end, else its creation; none while it has a queue), and whether a
 # client's mission started since its latest parking trip ended (it left, however short the mission), and
-# whether its latest stopCharging is not reported FINISHED (pending: not taken back at a charger, not told
-# twice; refused: it charges on by itself).
+# whether its latest stopCharging since its latest charging trip is not reported FINISHED (pending: not
+# taken back at a charger, not told twice; refused: it charges on by itself; one before that trip belongs
+# to an earlier charge, and a robot that once refused to stop would never be taken back again).
 STATION_ROBOTS_SQL = f"""
     SELECT r.name, r.agv_class, r.last_state_at IS NOT NULL, r.pose_x, r.pose_y, r.pose_map_id,
         r.online AND r.lifecycle = '{Lifecycle.ALIVE}',
@@ -79,12 +80,13 @@ STATION_ROBOTS_SQL = f"""
         COALESCE((
             SELECT a.status IS DISTINCT FROM '{ActionStatus.FINISHED}' FROM {InstantAction._meta.db_table} a
             WHERE a.robot_id = r.name AND a.action_type = '{ActionType.STOP_CHARGING}'
+              AND (trip.created_at IS NULL OR a.created_at >= trip.created_at)
             ORDER BY a.created_at DESC LIMIT 1
         ), false),
         r.charging_waiting_reason
     FROM {Robot._meta.db_table} r
     LEFT JOIN LATERAL (
-        SELECT m.state, m.queue_position FROM {_MISSIONS} m
+        SELECT m.state, m.queue_position, m.created_at FROM {_MISSIONS} m
         WHERE m.robot = r.name AND m.purpose = '{MissionPurpose.CHARGE}'
         ORDER BY m.queue_position DESC LIMIT 1
     ) AS trip ON true

@@ -25,7 +25,7 @@ from robots.status import robot_check_heartbeats, robots_came_online
 from stations.models import Station
 from tests.factories import CAN_CHARGE, TEST_ACTOR, RobotFactory, StationFactory
 from tests.missions.test_robot_step import put_state
-from vda5050.models import ActionType
+from vda5050.models import ActionStatus, ActionType
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -395,3 +395,22 @@ def test_a_robot_due_to_charge_starts_no_mission_of_its_own_while_a_charger_wait
         assert mission.waiting_reason == "Battery 25% is due to charge (at or below 30%): it charges first"
     else:
         assert mission.state == MissionState.RUNNING
+
+
+def test_a_stop_charging_refused_before_its_latest_trip_does_not_keep_a_robot_from_its_charger() -> None:
+    """Refused once, on an earlier charge: its latest charge is taken up again after an offline spell."""
+    robot("r1", level=20.0)
+    station("c1")
+    InstantAction.objects.create(
+        action_id="old-stop", robot_id="r1", action_type=ActionType.STOP_CHARGING, status=ActionStatus.FAILED
+    )
+    charging_at_its_charger("r1", level=25.0, trip_state=MissionState.COMPLETED)
+
+    Robot.objects.filter(name="r1").update(online=False)
+    stations_plan_run()
+    assert reservations("c1") == []
+    Robot.objects.filter(name="r1").update(online=True)
+    stations_plan_run()
+
+    assert reservations("c1") == ["r1"] and len(trips("r1")) == 1  # taken again, not a trip to where it is
+    assert stop_chargings("r1") == 1  # the old one alone
