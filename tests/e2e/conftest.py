@@ -181,7 +181,8 @@ class Stack:
 
 
 class Recorder:
-    """Every order and instant action published on the broker while the end-to-end tests run."""
+    """Every message the server publishes to robots (orders, instant actions, 3.0 zone sets and responses)
+    while the end-to-end tests run: each is checked against its schema at the end."""
 
     def __init__(self) -> None:
         self.messages: list[tuple[str, dict[str, Any]]] = []
@@ -196,7 +197,7 @@ class Recorder:
             [
                 (f"{interface}/+/+/+/{topic}", 0)
                 for interface in interfaces
-                for topic in ("order", "instantActions")
+                for topic in ("order", "instantActions", "zoneSet", "responses")
             ]
         )
         self.client.on_message = self._on_message

@@ -9,6 +9,8 @@ from typing import Any
 import pytest
 from rest_framework.test import APIClient
 
+from robots.models import Robot
+from tests.e2e.conftest import Recorder
 from tests.e2e.helpers import create_robot, get
 from tests.waiting import wait_for
 
@@ -29,7 +31,7 @@ def post(api: APIClient, path: str, body: dict | None = None) -> dict:
 
 
 def test_an_enabled_zone_set_reaches_the_3_0_robot_and_a_disabled_one_leaves_it(
-    api: APIClient, simulator: Callable[..., Any], unique: Callable[[str], str]
+    api: APIClient, simulator: Callable[..., Any], unique: Callable[[str], str], recorder: Recorder
 ) -> None:
     robot, old = unique("zones30"), unique("zones21")
     simulator(
@@ -49,7 +51,15 @@ def test_an_enabled_zone_set_reaches_the_3_0_robot_and_a_disabled_one_leaves_it(
 
     enabled = [{"map_id": "map", "zone_set_id": zone_set, "zone_set_status": "ENABLED"}]
     wait_for(lambda: get(api, "robot", robot)["status"]["zone_sets"] == enabled, message="zone set enabled")
-    assert get(api, "robot", old)["status"]["zone_sets"] == []
+    # The 2.1 robot was sent nothing (its simulator would report no zone sets whatever it got).
+    sent = Robot.objects.values_list("name", "next_zone_set_header_id")
+    assert dict(sent.filter(name__in=[robot, old])) == {robot: 1, old: 0}
+    assert not [
+        action
+        for message in recorder.for_robot(old, "instantActions")
+        for action in message.get("actions") or message.get("instantActions") or []
+        if "ZoneSet" in action["actionType"]
+    ]
 
     post(api, f"/zone_set/{zone_set}/disable")
 

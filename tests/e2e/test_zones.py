@@ -15,7 +15,7 @@ import pytest
 from rest_framework.test import APIClient
 
 from dispatch.step import ZONE_WAITING
-from tests.e2e.conftest import Simulator
+from tests.e2e.conftest import Recorder, Simulator
 from tests.e2e.helpers import Tap, create_robot, get, post_mission, route, tapped, wait_mission, wait_robot
 from tests.waiting import wait_for
 from vda5050.polygons import Point, contains
@@ -166,7 +166,7 @@ CROSSINGS = [((-2, 1), (4, 1)), ((1, 4), (1, -2)), ((4, 0.5), (-2, 0.5)), ((1.5,
     ids=["2.x-3.0", "3.0-3.0", "two-of-each"],
 )
 def test_2_x_and_3_0_robots_crossing_one_zone_share_its_grants_and_all_complete(
-    api, simulator, unique, versions: tuple[str, ...]
+    api, simulator, unique, recorder: Recorder, versions: tuple[str, ...]
 ):
     """A 3.0 robot holds the zone set (its factsheet lists RELEASE), asks for the zone at its edge and is
     answered on the responses topic; a 2.x robot is held back by its order: one set of grants."""
@@ -198,9 +198,13 @@ def test_2_x_and_3_0_robots_crossing_one_zone_share_its_grants_and_all_complete(
     together, seen = inside_together(recorded, aisle)
     assert together == []
     assert seen == set(robots)
-    for name in speaking_3_0:  # each 3.0 robot asked, and was let through
+    for name in speaking_3_0:  # each 3.0 robot asked, and was let through on the responses topic
         asked = [r for state in recorded[name].of("state") for r in state.get("zoneRequests") or []]
         assert {r["zoneId"] for r in asked} == {"aisle"}
+        answers = [a for message in recorder.for_robot(name, "responses") for a in message["responses"]]
+        assert {a["requestId"] for a in answers if a["grantType"] == "GRANTED"} == {
+            r["requestId"] for r in asked
+        }
 
 
 def readme_bodies(section: str) -> list[dict[str, Any]]:
