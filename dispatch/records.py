@@ -31,9 +31,10 @@ class DispatchSettings:
 
 @dataclass(frozen=True)
 class ZoneReach:
-    """What the zone plan (`dispatch.zones.decide`, stored by `zones.plan`) allows a robot while some map
-    has an enabled RELEASE zone; a robot without one (None) is not held back by zones at all. A robot the
-    plan has not seen yet on a map with an enabled RELEASE zone gets the empty reach: nothing but starts.
+    """What the zone plan (`dispatch.zones.decide`, stored by `missions.zone_plan`) allows a robot while
+    some map has an enabled RELEASE zone; a robot without one (None) is not held back by zones at all. A
+    robot the plan has not seen yet on a map with an enabled RELEASE zone gets the empty reach: nothing but
+    starts.
 
     Its order's base may hold the nodes of order `order_id` up to sequenceId `release_through`: of any
     other order (a new one, before the plan has seen it), no node beyond the robot's own position."""
@@ -154,6 +155,6 @@ class StepResult:
     # Why the robot gives back the queued mission assignment bound to it (offline, low battery, a FATAL
     # error, being deleted): it is unbound again, for another robot.
     release: str | None = None
-    # The zone plan should run (`zones.plan`): the robot's route or position on it changed, its mission
-    # ended, or its 3.0 zone requests are not the ones last answered.
+    # The zone plan should run (`missions.zone_plan`): the robot's route or position on it changed, its
+    # mission ended, or its 3.0 zone requests are not the ones last answered.
     zones_plan: bool = False

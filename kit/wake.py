@@ -54,9 +54,9 @@ def request_assignment(*, defer_while_busy: bool = False) -> None:
 
 
 def request_zones_plan() -> None:
-    """Run the zone plan (`zones.plan.zones_plan_run`: who holds which zone, how far each order reaches)
-    once the current transaction commits; requests made while one is queued are one run. Beat runs it too
-    while a map has an enabled zone set."""
+    """Run the zone plan (`missions.zone_plan.zones_plan_run`: who holds which zone, how far each order
+    reaches) once the current transaction commits; requests made while one is queued are one run. Beat runs
+    it too while a map has an enabled zone set."""
     requester = _zones_requester
     if requester is None:
         raise RuntimeError("no zones requester installed: is the workers app in INSTALLED_APPS?")

@@ -101,7 +101,7 @@ class _Reach:
 class _Robot:
     name: str
     counts: bool
-    route: RobotRoute | None
+    route: RobotRoute
     sequence_ids: tuple[int, ...]  # of the route's nodes
     reached: int  # the sequenceId of the order's node the robot last reached
     order_id: str | None
@@ -136,7 +136,7 @@ def zones_plan_run() -> ZoneDecision | None:
             holders.setdefault((map_id, zone_id), []).append(robot)
         decision = decide(
             zones=zones,
-            robots=[robot.route for robot in robots if robot.counts and robot.route is not None],
+            robots=[robot.route for robot in robots if robot.counts],
             holders=holders,
             revoked=[(robot, (map_id, zone_id)) for _, map_id, zone_id, robot, revoked in grants if revoked],
         )
@@ -233,12 +233,11 @@ def _with_latest_states(robots: list[_Robot], enabled: dict[str, str]) -> dict[s
     be older than the progress the step wrote from a later state, and a robot placed back on its route's
     previous edge could seem to touch no zone where it drives now. The latest state is at least as new as
     the progress."""
-    counting = [robot for robot in robots if robot.counts and robot.route is not None]
+    counting = [robot for robot in robots if robot.counts]
     payloads = livestate.states([robot.name for robot in counting])
     rejected: dict[str, tuple[str, ...]] = {}
     for robot in counting:
         payload = payloads[robot.name]
-        assert robot.route is not None
         if payload is None:
             continue
         if not robot.is_3:  # 2.x: its position alone, without a full parse
@@ -322,9 +321,7 @@ def _behind(robots: list[_Robot], decision: ZoneDecision) -> list[str]:
     return [
         robot.name
         for robot in robots
-        if robot.counts
-        and robot.route is not None
-        and decision.horizons.get(robot.name, 0) > robot.route.released
+        if robot.counts and decision.horizons.get(robot.name, 0) > robot.route.released
     ]
 
 
@@ -381,9 +378,7 @@ def _let_go(cursor: CursorWrapper, robots: list[_Robot]) -> None:
     if reached:
         cursor.execute(REACH_DELETE_SQL, [reached])
     held_back = [
-        robot.name
-        for robot in robots
-        if robot.counts and robot.route is not None and robot.route.released < len(robot.route.route)
+        robot.name for robot in robots if robot.counts and robot.route.released < len(robot.route.route)
     ]
     to_step = list(dict.fromkeys([*reached, *held_back]))
     if to_step:

@@ -129,7 +129,7 @@ class Robot(models.Model):
         help_text="Why the robot, low or asked to charge, has no charging trip (no free charger, its "
         "factsheet lists no startCharging, ...); null otherwise.",
     )
-    # --- zone access (the zone plan's, `zones.plan`) ---
+    # --- zone access (the zone plan's, `missions.zone_plan`) ---
     zone_access = models.JSONField(
         default=dict,
         blank=True,

@@ -38,8 +38,9 @@ ASSIGNMENT_RUN_INTERVAL_SECONDS = 0.1
 # busy fleet, new missions ask for about one run per this; a robot freed without asking for a run (its
 # battery reported charged, ...) waits no longer for a new mission.
 ASSIGNMENT_FLEET_BUSY_SECONDS = 1.0
-# The zone plan's (`zones.plan`) queued-run marker expires as the assignment's; its runs start at most this
-# often: a fleet whose robots each report progress asks for a run per node reached, and a run reads them all.
+# The zone plan's (`missions.zone_plan`) queued-run marker expires as the assignment's; its runs start at most
+# this often: a fleet whose robots each report progress asks for a run per node reached, and a run reads them
+# all.
 ZONES_MARKER_SECONDS = 10
 ZONES_RUN_INTERVAL_SECONDS = 0.1
 # A step request that could not be queued (Redis or the broker away) is tried again this often.

@@ -48,8 +48,8 @@ class ZoneSet(models.Model):
 
 class ZoneGrant(models.Model):
     """A robot holds a RELEASE zone of its map's enabled zone set (`dispatch.zones.decide`): written by
-    the zone plan (`zones.plan.zones_plan_run`) alone. A robot is a name, as a mission names its robot: a
-    deleted robot's grants go with the next plan run."""
+    the zone plan (`missions.zone_plan.zones_plan_run`) alone. A robot is a name, as a mission names its
+    robot: a deleted robot's grants go with the next plan run."""
 
     map_id = models.TextField()
     zone_id = models.TextField()
