@@ -18,6 +18,7 @@ import threading
 import time
 from collections.abc import Iterable
 from enum import IntEnum
+from typing import Any
 
 import kombu
 import kombu.exceptions
@@ -57,15 +58,12 @@ def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
     if not names:
         return
     at = time.time() if at is None else at
-    marked = livestate.round_trip(
+    marked = _replies(
         [
             ("SET", livestate.step_marker_key(name), 1, "NX", "EX", tuning.STEP_MARKER_SECONDS)
             for name in names
         ]
     )
-    for reply in marked:
-        if isinstance(reply, Exception):
-            raise reply
     queued = [name for name, reply in zip(names, marked, strict=True) if reply is not None]
     if not queued:
         return
@@ -89,7 +87,7 @@ def queue_assignment(
     One round trip to Redis."""
     expiry = tuning.ASSIGNMENT_MARKER_SECONDS + math.ceil(countdown)  # a busy fleet's wait is far shorter
     marker = (ASSIGNMENT_MARKER_KEY, REASONS_ASKED if with_reasons else 1)
-    marked, since_last, busy_for, *_ = replies = livestate.round_trip(
+    marked, since_last, busy_for, *_ = _replies(
         [
             ("SET", *marker, "NX", "EX", expiry),
             ("PTTL", ASSIGNMENT_RAN_KEY),
@@ -97,9 +95,6 @@ def queue_assignment(
             *([("SET", *marker, "XX", "KEEPTTL")] if with_reasons else []),  # the queued run's, if any
         ]
     )
-    for reply in replies:
-        if isinstance(reply, Exception):
-            raise reply
     if marked is None:
         return
     waits = [countdown, since_last / 1000, busy_for / 1000 if defer_while_busy else 0.0]  # PTTL: -2 if none
@@ -109,15 +104,21 @@ def queue_assignment(
 def queue_zones_plan() -> None:
     """Queue a zone plan run unless one is queued already (`ZONES_MARKER_KEY`), to start no sooner than
     `ZONES_RUN_INTERVAL_SECONDS` after the last run started. One round trip to Redis."""
-    marked, since_last = replies = livestate.round_trip(
+    marked, since_last = _replies(
         [("SET", ZONES_MARKER_KEY, 1, "NX", "EX", tuning.ZONES_MARKER_SECONDS), ("PTTL", ZONES_RAN_KEY)]
     )
-    for reply in replies:
-        if isinstance(reply, Exception):
-            raise reply
     if marked is None:
         return
     _send_run(ZONES_TASK, ZONES_MARKER_KEY, countdown=max(since_last / 1000, 0.0))  # PTTL: -2 if none
+
+
+def _replies(commands: list[livestate.Command]) -> list[Any]:
+    """`livestate.round_trip`, raising the first error reply: a request half made must not pass for made."""
+    replies = livestate.round_trip(commands)
+    for reply in replies:
+        if isinstance(reply, Exception):
+            raise reply
+    return replies
 
 
 def _send_run(task: str, marker_key: str, *, countdown: float) -> None:

@@ -12,9 +12,12 @@ import pytest
 from django.conf import settings
 
 from robots import livestate
+from tests.factories import TEST_ACTOR, ZoneSetFactory
 from tests.private_redis import PrivateRedis, live_state_in
 from tests.waiting import wait_for
 from workers import step_requests
+from workers.tasks import plan_zones_while_enabled
+from zones.services import zone_set_enable
 
 
 @pytest.fixture
@@ -103,12 +106,16 @@ def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
     assert step_tasks(names) == [names[:1]]  # the broker was up all along
 
 
-def _assignment_tasks() -> list[bytes]:
+def _tasks(task: str) -> list[bytes]:
     return [
         message
         for message in livestate.client().lrange(settings.STEP_QUEUE, 0, -1)
-        if orjson.loads(message)["headers"]["task"] == step_requests.ASSIGN_TASK
+        if orjson.loads(message)["headers"]["task"] == task
     ]
+
+
+def _assignment_tasks() -> list[bytes]:
+    return _tasks(step_requests.ASSIGN_TASK)
 
 
 @pytest.fixture
@@ -232,3 +239,58 @@ def test_a_run_asked_for_the_reasons_knows_it_even_when_a_plain_one_was_queued_f
     ttl = livestate.client().ttl(step_requests.ASSIGNMENT_MARKER_KEY)
     assert 0 < ttl <= step_requests.tuning.ASSIGNMENT_MARKER_SECONDS  # its expiry kept
     assert step_requests.assignment_run_started() is True
+
+
+@pytest.fixture
+def no_zones_plan_queued() -> Iterator[None]:
+    def clear() -> None:
+        redis = livestate.client()
+        redis.delete(step_requests.ZONES_MARKER_KEY, step_requests.ZONES_RAN_KEY)
+        for message in _tasks(step_requests.ZONES_TASK):
+            redis.lrem(settings.STEP_QUEUE, 0, message)
+
+    clear()
+    yield
+    clear()
+
+
+def test_zone_plan_runs_are_coalesced_and_one_asked_for_right_after_a_run_started_waits_its_interval(
+    no_zones_plan_queued: None,
+) -> None:
+    step_requests.queue_zones_plan()
+    step_requests.queue_zones_plan()
+    [first] = _tasks(step_requests.ZONES_TASK)
+    assert _eta(first) is None  # no run started lately: at once
+    ttl = livestate.client().ttl(step_requests.ZONES_MARKER_KEY)
+    assert 0 < ttl <= step_requests.tuning.ZONES_MARKER_SECONDS  # a lost run blocks others only so long
+
+    step_requests.zones_plan_started()  # what the run does first
+    asked_at = datetime.now(UTC)
+    step_requests.queue_zones_plan()
+    sent_by = datetime.now(UTC)
+    tasks = _tasks(step_requests.ZONES_TASK)
+    assert len(tasks) == 2
+    eta = _eta(tasks[0])  # the newest: Celery pushes on the list's left
+    interval = timedelta(seconds=step_requests.tuning.ZONES_RUN_INTERVAL_SECONDS)
+    assert eta is not None and asked_at < eta <= sent_by + interval
+
+
+def test_zone_plan_runs_asked_soon_are_one_queued_by_the_sender_thread(no_zones_plan_queued: None) -> None:
+    step_requests.queue_zones_plan_soon()
+    step_requests.queue_zones_plan_soon()
+
+    assert step_requests.wait_until_queued(5.0)
+    assert len(_tasks(step_requests.ZONES_TASK)) == 1
+
+
+@pytest.mark.django_db
+def test_beat_queues_zone_plan_runs_only_while_a_map_has_an_enabled_zone_set(
+    no_zones_plan_queued: None,
+) -> None:
+    zone_set = ZoneSetFactory()
+    plan_zones_while_enabled()
+    assert _tasks(step_requests.ZONES_TASK) == []  # no set enabled, no order held back
+
+    zone_set_enable(actor=TEST_ACTOR, zone_set=zone_set)
+    plan_zones_while_enabled()
+    assert len(_tasks(step_requests.ZONES_TASK)) == 1  # (the enable's own request waits for a commit)
