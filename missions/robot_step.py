@@ -46,6 +46,7 @@ from missions.rows import (
     mission_records,
     mission_row_delete,
     robot_charge_threshold_sql,
+    zone_reach_record,
 )
 from missions.services import mission_claim
 from missions.tuning import OUTBOX_LIMIT
@@ -378,13 +379,8 @@ def _robot_step_locked(name: str, now: datetime, outcome: StepOutcome) -> tuple[
     )
     zone_reach = None
     if has_reach:
-        zone_reach = ZoneReach(
-            order_id=reach_order_id,
-            release_through=release_through,
-            waiting=tuple(json_column(waiting) or ()),
-            responses=tuple((request, grant) for request, grant in json_column(responses) or ()),
-            responses_due=responses_version > responses_sent,
-        )
+        due = responses_version > responses_sent
+        zone_reach = zone_reach_record(reach_order_id, release_through, waiting, responses, due=due)
     elif zoned_maps and _may_be_on(state, zoned_maps):
         zone_reach = ZoneReach()  # not seen by the zone plan yet: a new order releases its start alone
     actions = [_action_record(a) for a in robot_unfinished_instant_actions(robot=name)] if has_actions else []

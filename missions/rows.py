@@ -12,9 +12,9 @@ import orjson
 from django.db import connection
 from django.db.models import JSONField
 
-from dispatch.records import MissionRecord
+from dispatch.records import MissionRecord, ZoneReach
 from dispatch.vocabulary import Lifecycle, MissionState, StationKind
-from kit.db import jsonb
+from kit.db import json_column, jsonb
 from missions.models import Mission
 from robots.models import Robot
 from stations.models import Station
@@ -147,6 +147,20 @@ def robots_column_write_sql(column: str, sql_type: str) -> str:
     UPDATE {Robot._meta.db_table} AS r SET {column} = g.value
     FROM given AS g WHERE r.name = g.name AND r.name IN (SELECT name FROM free)
 """
+
+
+def zone_reach_record(
+    order_id: str | None, release_through: int | None, waiting: Any, responses: Any, *, due: bool = False
+) -> ZoneReach:
+    """A robot's zone reach row (`zones.models.ZoneReach`, JSON columns as read) as the step and the zone
+    plan take it; `due`: answers the robot was not sent yet."""
+    return ZoneReach(
+        order_id=order_id,
+        release_through=release_through,
+        waiting=tuple(json_column(waiting) or ()),
+        responses=tuple((request, grant) for request, grant in json_column(responses) or ()),
+        responses_due=due,
+    )
 
 
 def binding_time(at: datetime) -> str:

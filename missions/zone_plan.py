@@ -26,24 +26,26 @@ from django.db import connection, transaction
 from django.db.backends.utils import CursorWrapper
 from django.utils import timezone
 
+from dispatch.records import ZoneReach
 from dispatch.vocabulary import Lifecycle, MissionState
 from dispatch.zones import RobotRoute, RoutePoint, Zone, ZoneDecision, ZoneKey, decide, zone_requests
 from kit.db import json_column, jsonb
 from kit.wake import request_steps
 from missions.models import Mission
-from missions.rows import robots_column_write_sql
+from missions.rows import robots_column_write_sql, zone_reach_record
 from robots import livestate
 from robots.models import Robot
 from vda5050.codec import parse_state
 from vda5050.errors import ProtocolError
 from vda5050.versions import V3_0
 from vda5050.zones import GrantType, ZoneType
-from zones.models import ZoneGrant, ZoneReach, ZoneSet
+from zones.models import ZoneGrant, ZoneSet
+from zones.models import ZoneReach as ZoneReachRow
 
 ZONES_LOCK_SPACE = 5051  # the advisory lock serialising runs (missions.rows uses 5050 for robots' queues)
 LOCK_SQL = f"SELECT pg_advisory_xact_lock({ZONES_LOCK_SPACE}, 0)"
 ENABLED_SQL = f"SELECT map_id, name, zones FROM {ZoneSet._meta.db_table} WHERE enabled"
-_REACH = ZoneReach._meta.db_table
+_REACH = ZoneReachRow._meta.db_table
 _GRANTS = ZoneGrant._meta.db_table
 _ROBOTS = Robot._meta.db_table
 # Every robot: whether it counts, its position, version, shown zone access; its running mission's priority,
@@ -87,16 +89,6 @@ REACH_ORPHANS_DELETE_SQL = (
 ZONE_ACCESS_SQL = robots_column_write_sql("zone_access", "jsonb")
 
 
-@dataclass(frozen=True)
-class _Reach:
-    """A robot's reach row as the run writes it (`zones.models.ZoneReach`)."""
-
-    order_id: str | None
-    release_through: int | None
-    waiting: tuple[str, ...]
-    responses: tuple[tuple[str, str], ...]
-
-
 @dataclass
 class _Robot:
     name: str
@@ -107,7 +99,7 @@ class _Robot:
     order_id: str | None
     is_3: bool
     zone_access: Any
-    stored: _Reach | None
+    stored: ZoneReach | None
     responses_version: int
 
 
@@ -204,12 +196,7 @@ def _robot(
     )
     stored = None
     if has_reach:
-        stored = _Reach(
-            reach_order_id,
-            release_through,
-            tuple(json_column(waiting) or ()),
-            tuple((request, grant) for request, grant in json_column(responses) or ()),
-        )
+        stored = zone_reach_record(reach_order_id, release_through, waiting, responses)
     return _Robot(
         name=name,
         counts=counts,
@@ -288,7 +275,7 @@ def _reaches_write(
     now: datetime,
 ) -> list[str]:
     """Each robot's reach as decided, written where it changed; the robots whose reach changed."""
-    changed: list[tuple[_Robot, _Reach, int]] = []
+    changed: list[tuple[_Robot, ZoneReach, int]] = []
     for robot in robots:
         reach = _reach_of(robot, decision, rejected.get(robot.name, ()))
         if reach == robot.stored:
@@ -325,7 +312,7 @@ def _behind(robots: list[_Robot], decision: ZoneDecision) -> list[str]:
     ]
 
 
-def _reach_of(robot: _Robot, decision: ZoneDecision, rejected: tuple[str, ...]) -> _Reach:
+def _reach_of(robot: _Robot, decision: ZoneDecision, rejected: tuple[str, ...]) -> ZoneReach:
     """How far the robot's order may reach: through its route's `horizon` nodes (never less than its base
     holds: `decide` sees to that); a robot that does not count, no further than its base."""
     horizon = decision.horizons.get(robot.name) if robot.counts else None
@@ -335,11 +322,11 @@ def _reach_of(robot: _Robot, decision: ZoneDecision, rejected: tuple[str, ...]) 
     waiting = tuple(sorted(zone_id for _, zone_id in decision.waiting.get(robot.name, ())))
     answers = decision.responses.get(robot.name, ())
     responses = (*answers, *((request, GrantType.REJECTED.value) for request in rejected))
-    return _Reach(
-        robot.order_id if through is not None else None,
-        through,
-        waiting,
-        tuple((request, str(grant)) for request, grant in responses),
+    return ZoneReach(
+        order_id=robot.order_id if through is not None else None,
+        release_through=through,
+        waiting=waiting,
+        responses=tuple((request, str(grant)) for request, grant in responses),
     )
 
 
