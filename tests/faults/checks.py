@@ -715,7 +715,8 @@ def check_zone_capacity(
     entered: set[tuple[str, str, float]] = set()
     states = 0
     for message in messages:
-        position = (message.data or {}).get("agvPosition") if message.kind == "state" else None
+        data = (message.data or {}) if message.kind == "state" else {}
+        position = data.get("agvPosition") or data.get("mobileRobotPosition")  # 2.x, 3.0
         if not isinstance(position, dict):
             continue
         states += 1

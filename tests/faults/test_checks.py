@@ -612,6 +612,15 @@ def test_two_robots_inside_a_zone_at_once_fail_once_per_pair():
     assert len(problems) == 1 and "robots a, b inside zone crossing together" in problems[0]
 
 
+def test_a_3_0_robots_position_counts_as_a_2_x_robots():
+    position = {"mobileRobotPosition": {"x": 1.4, "y": 1.4}}
+    in_3_0 = WireMessage(2, f"{PREFIX}/b/state", {"headerId": 20, **position})
+
+    problems = checks.check_zone_capacity([at(1, "a", 1, 1), in_3_0], ZONES, []).problems
+
+    assert len(problems) == 1 and "robots a, b inside zone crossing together" in problems[0]
+
+
 def test_a_stay_in_a_zone_over_a_simulator_restart_is_left_out():
     """Restarted, robot a was offline and held nothing: b may have been let in before a reported again."""
     messages = [at(1, "a", 1, 1), at(5, "a", 1, 1), at(6, "b", 1, 1), at(7, "b", 3, 3)]
