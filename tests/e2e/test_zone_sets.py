@@ -13,15 +13,15 @@ from robots.models import Robot
 from tests.e2e.conftest import Recorder
 from tests.e2e.helpers import create_robot, get
 from tests.waiting import wait_for
+from tests.zones import bodies
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
-AISLE = {
-    "zone_id": "aisle",
-    "zone_type": "RELEASE",
-    "vertices": [{"x": 2.0, "y": -1.0}, {"x": 3.0, "y": -1.0}, {"x": 3.0, "y": 1.0}, {"x": 2.0, "y": 1.0}],
-    "release_loss_behavior": "STOP",
-}
+AISLE = bodies.zone(
+    "RELEASE",
+    "aisle",
+    vertices=[{"x": 2.0, "y": -1.0}, {"x": 3.0, "y": -1.0}, {"x": 3.0, "y": 1.0}, {"x": 2.0, "y": 1.0}],
+)
 
 
 def post(api: APIClient, path: str, body: dict | None = None) -> dict:

@@ -18,6 +18,7 @@ from dispatch.step import ZONE_WAITING
 from tests.e2e.conftest import Recorder, Simulator
 from tests.e2e.helpers import Tap, create_robot, get, post_mission, route, tapped, wait_mission, wait_robot
 from tests.waiting import wait_for
+from tests.zones import bodies
 from vda5050.polygons import Point, contains
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
@@ -32,19 +33,13 @@ def square(x: float, y: float, size: float = 2.0) -> tuple[Point, ...]:
 
 def zone_set(api: APIClient, name: str, zones: dict[str, tuple[Point, ...]]) -> None:
     """A zone set of map `map` with these RELEASE zones (capacity 1), enabled."""
-    body = {
-        "name": name,
-        "map_id": "map",
-        "zones": [
-            {
-                "zone_id": zone_id,
-                "zone_type": "RELEASE",
-                "release_loss_behavior": "STOP",
-                "vertices": [{"x": x, "y": y} for x, y in vertices],
-            }
+    body = bodies.zone_set(
+        name,
+        zones=[
+            bodies.zone("RELEASE", zone_id, vertices=[{"x": x, "y": y} for x, y in vertices])
             for zone_id, vertices in zones.items()
         ],
-    }
+    )
     assert api.post("/zone_set", body, format="json").status_code == 200
     assert api.post(f"/zone_set/{name}/enable").status_code == 200
 
