@@ -44,7 +44,7 @@ WRITE_QUERIES = {"POST /robot/acc1/teleop": "?params=STOP"}
 
 
 @pytest.fixture(autouse=True)
-def objects() -> None:
+def objects(request: pytest.FixtureRequest) -> None:
     # A robot with maps, online and able to charge (POST /robot/acc1/charge).
     RobotFactory(
         name=NAME,
@@ -54,7 +54,9 @@ def objects() -> None:
     )
     MissionFactory(name=NAME, robot=NAME)
     StationFactory(name=NAME)
-    ZoneSetFactory(name=NAME)
+    # Disabled, so that DELETE may remove it; enabled for a revoke (only an enabled set's grants are).
+    endpoint = getattr(request.node, "callspec", None) and request.node.callspec.params.get("endpoint")
+    ZoneSetFactory(name=NAME, enabled=str(endpoint) == "POST /zone_set/acc1/revoke")
     ZoneGrant.objects.create(map_id="map", zone_id="square", robot=NAME, granted_at=timezone.now())
 
 
