@@ -375,6 +375,7 @@ class Bench:
         meter = measure.CpuMeter(self.options.process_groups)
         ends = measure.slice_ends(self.options.duration, self.options.sample_every)
         logger.info("measuring for %.0f s in %d slices", self.options.duration, len(ends))
+        published = measure.broker_publishes(self.options.probe_redis)
         first = previous = meter.snapshot()
         window.start = time.monotonic()
         window.end = window.start + self.options.duration
@@ -400,11 +401,15 @@ class Bench:
         seconds = previous_at - window.start
         window.end = min(window.end, time.monotonic())
         states = self.counts["states_published"] - before["states_published"]
+        published_by_end = measure.broker_publishes(self.options.probe_redis)
         return {
             "seconds": seconds,
             "processes": measure.usage(first, previous, seconds),
             "busy_and_steal": measure.busy_and_steal(first.cpu_times, previous.cpu_times),
             "states_published": states,
+            "tasks_sent": published_by_end - published
+            if published is not None and published_by_end is not None
+            else None,
             "series": series,
         }
 
@@ -699,6 +704,10 @@ class Bench:
             "cpu_per_order": measure.cpu_per_order(
                 measured["processes"], window.orders_finished, calibration["cpu_speed_ms"]
             ),
+            # Celery tasks sent in the window (steps, assignment and zone runs, notify calls) per order.
+            "tasks_per_order": round(measured["tasks_sent"] / window.orders_finished, 3)
+            if measured["tasks_sent"] is not None and window.orders_finished
+            else None,
             "generator_tick_lag_ms": {"p99": lags["p99"], "max": lags["max"]},
             "assignment": self.pool.figures() if options.unbound else None,
             "series": measured["series"],

@@ -346,6 +346,24 @@ def _best_loop_us(call: Callable[[], object], count: int) -> float:
     return round(best / count * 1e6, 1)
 
 
+def broker_publishes(redis_url: str | None) -> int | None:
+    """How many messages kombu's Redis transport has pushed onto its queues on ``redis_url``'s server
+    since it started (``LPUSH`` calls: only kombu pushes onto lists there), or None without a URL or when
+    it cannot be asked. Over a window and per order: the Celery tasks an order cost, each a hop to pay."""
+    if redis_url is None:
+        return None
+    import redis
+
+    client = redis.Redis.from_url(redis_url)
+    try:
+        stats = client.info("commandstats")
+    except redis.RedisError:
+        return None
+    finally:
+        client.close()
+    return int(stats.get("cmdstat_lpush", {}).get("calls", 0))
+
+
 def cpu_per_order(
     processes: Mapping[str, Mapping[str, float | int]], orders: int, cal_ms: float | None
 ) -> dict[str, Any]:

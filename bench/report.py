@@ -99,7 +99,8 @@ def run_line(result: dict[str, Any]) -> str:
             f"{result['throughput']['orders_per_second']} orders/s, step p50 / p99 {_value(step['p50'])} / "
             f"{_value(step['p99'])} ms, server CPU per order {_value(per_order.get('server_ms'))} ms "
             f"({_value(per_order.get('at_reference_ms'))} ms scaled to cal {REFERENCE_CAL_MS:g}: "
-            f"x {REFERENCE_CAL_MS:g} / {_value(cal)})"
+            f"x {REFERENCE_CAL_MS:g} / {_value(cal)}), Celery tasks per order "
+            f"{_value(result.get('tasks_per_order'))}"
         )
     else:
         figures = f"server {_server_cpu(result, 'cores')} cores"
@@ -282,6 +283,8 @@ AB_FIGURES = {  # name in the comparison -> how to read it from a run's result
     "orders_per_s": lambda r: r["throughput"]["orders_per_second"],
     "step_p50_ms": lambda r: r["step_latency_ms"]["p50"],
     "step_p99_ms": lambda r: r["step_latency_ms"]["p99"],
+    "start_p99_ms": lambda r: r["start_latency_ms"]["p99"],
+    "tasks_per_order": lambda r: r.get("tasks_per_order"),
     "cal_ms": lambda r: r["machine"].get("cpu_speed_ms"),
     "select1_us": lambda r: r["machine"].get("select1_us"),
     "redis_ping_us": lambda r: r["machine"].get("redis_ping_us"),
@@ -341,8 +344,8 @@ def ab_markdown(comparison: dict[str, Any]) -> str:
             f"### {name}: median ratio b / a {_value(run['median_cpu_ratio'])}",
             "",
             "| pair | a CPU ms/order | b CPU ms/order | b / a | a / b orders/s | a / b step p50 ms "
-            "| a / b step p99 ms | a / b cal ms |",
-            "|---|---|---|---|---|---|---|---|",
+            "| a / b step p99 ms | a / b start p99 ms | a / b tasks/order | a / b cal ms |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         rows = [(str(number + 1), row) for number, row in enumerate(run["pairs"])]
         median = run["median"]
@@ -356,7 +359,14 @@ def ab_markdown(comparison: dict[str, Any]) -> str:
             ]
             cells += [
                 f"{_value(a[key])} / {_value(b[key])}"
-                for key in ("orders_per_s", "step_p50_ms", "step_p99_ms", "cal_ms")
+                for key in (
+                    "orders_per_s",
+                    "step_p50_ms",
+                    "step_p99_ms",
+                    "start_p99_ms",
+                    "tasks_per_order",
+                    "cal_ms",
+                )
             ]
             lines.append("| " + " | ".join(cells) + " |")
         a, b = median["a"], median["b"]

@@ -80,6 +80,20 @@ def test_round_trip_probes_make_their_round_trips_to_the_real_postgresql_and_red
     assert measure.round_trip_us(None, None) == {"select1_us": None, "redis_ping_us": None}
 
 
+def test_broker_publishes_counts_what_is_pushed_onto_lists_on_the_server() -> None:
+    client = redis.Redis.from_url(settings.REDIS_URL)
+    key = f"bench-publishes-{os.getpid()}"
+    before = measure.broker_publishes(settings.REDIS_URL)
+    try:
+        for number in range(5):
+            client.lpush(key, number)
+        after = measure.broker_publishes(settings.REDIS_URL)
+    finally:
+        client.delete(key)
+    assert before is not None and after is not None and after - before >= 5
+    assert measure.broker_publishes(None) is None
+
+
 def _pings(client: redis.Redis) -> int:
     return int(client.info("commandstats").get("cmdstat_ping", {}).get("calls", 0))
 
@@ -127,6 +141,7 @@ def _assert_yardstick(result: dict[str, Any]) -> None:
         per_order["server_ms"] * measure.REFERENCE_CAL_MS / machine["cpu_speed_ms"], rel=1e-3
     )
     assert machine["cpu_speed_ms"] > 0 and machine["select1_us"] > 0 and machine["redis_ping_us"] > 0
+    assert result["tasks_per_order"] > 0  # the steps' Celery tasks, counted on the stack's own Redis
     processes = {group: figures["processes"] for group, figures in cpu.items()}
     # granian and its worker; one bridge (not the decoy); the step and notify workers; beat; the stack's
     # Redis, its broker and its database's backends
