@@ -19,6 +19,7 @@ from tests.factories import TEST_ACTOR
 from tests.granian_server import ASGI, GranianServer, granian_server
 from tests.private_redis import PrivateRedis
 from vda5050.models import ActionStatus
+from workers import tuning
 from workers.bridge.loop import Bridge
 
 # The name of the token the `api` fixtures authenticate with; writes are recorded as token:<name>.
@@ -90,8 +91,11 @@ def make_robot(db: None) -> Iterator[Callable[..., Robot]]:
 
 
 @pytest.fixture
-def bridge() -> Bridge:
-    """A bridge that only ever handles what a test hands it: run_forever (and so MQTT) is never called."""
+def bridge(monkeypatch: pytest.MonkeyPatch) -> Bridge:
+    """A bridge that only ever handles what a test hands it: run_forever (and so MQTT) is never called.
+    It queues its step requests at once, as a bridge whose workers keep up does: no worker takes the tasks
+    here, so every request after the first would find a backlog and be held (`HeldSteps`, tested apart)."""
+    monkeypatch.setattr(tuning, "STEP_HOLD_SECONDS", 0.0)
     return Bridge()
 
 

@@ -7,7 +7,8 @@ for a change of a mission or robot, the heartbeat check). A robot whose step is 
 queued gets no second one; its marker is cleared when its step reads the robot's state
 (`robots.livestate.state_for_step`), so a change that arrives during the step queues one more. A task
 carries several robots when a bridge batch or a sweep asks for several: Celery's cost per task is of the
-order of a step's own.
+order of a step's own, so while step tasks wait in the broker the bridge holds its requests until they fill
+a task (`HeldSteps`). Steps a service asked for go before those of robots' states (`StepPriority`).
 """
 
 import atexit
@@ -22,6 +23,7 @@ from typing import Any
 
 import kombu
 import kombu.exceptions
+import kombu.transport.redis
 import redis
 from celery import current_app as app  # the roof's (fleet.celery), loaded with the settings
 from django.conf import settings
@@ -50,31 +52,98 @@ ZONES_MARKER_KEY = f"{livestate.PREFIX}:zones-queued"
 ZONES_RAN_KEY = f"{livestate.PREFIX}:zones-ran"
 
 
-def queue_steps(names: Iterable[str], *, at: float | None = None) -> None:
-    """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s).
+class StepPriority(IntEnum):
+    """A step task's priority. kombu's Redis transport keeps a list per priority step (0, 3, 6, 9) and a
+    worker takes from the lowest first. A step a service asked for (an API call, an assignment's binding,
+    the heartbeat check) is often a mission's start with a client waiting for it: it goes before the steps
+    of robots' states and of beat's sweeps, of which a busy fleet has a backlog."""
 
-    One Redis round trip marks them, one Celery task per `STEP_TASK_ROBOTS` of them carries them."""
+    ASKED = 0
+    ROUTINE = 6
+
+
+def step_queue_keys() -> list[str]:
+    """The steps queue's lists in a Redis broker, one per priority step, as kombu's transport names them."""
+    separator = kombu.transport.redis.Channel.sep
+    return [
+        settings.STEP_QUEUE if priority == 0 else f"{settings.STEP_QUEUE}{separator}{priority}"
+        for priority in kombu.transport.redis.PRIORITY_STEPS
+    ]
+
+
+def queue_steps(
+    names: Iterable[str], *, at: float | None = None, priority: StepPriority = StepPriority.ROUTINE
+) -> int:
+    """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s).
+    Returns the step tasks that were waiting in the broker before these (`_backlog_commands`).
+
+    One Redis round trip marks them (and reads the backlog), one Celery task per `STEP_TASK_ROBOTS` of them
+    carries them."""
     names = list(dict.fromkeys(names))
     if not names:
-        return
+        return 0
     at = time.time() if at is None else at
-    marked = _replies(
-        [
-            ("SET", livestate.step_marker_key(name), 1, "NX", "EX", tuning.STEP_MARKER_SECONDS)
-            for name in names
-        ]
-    )
-    queued = [name for name, reply in zip(names, marked, strict=True) if reply is not None]
-    if not queued:
-        return
+    marks: list[livestate.Command] = [
+        ("SET", livestate.step_marker_key(name), 1, "NX", "EX", tuning.STEP_MARKER_SECONDS) for name in names
+    ]
+    replies = _replies(marks + _backlog_commands())
+    queued = [name for name, reply in zip(names, replies[: len(names)], strict=True) if reply is not None]
     size = settings.STEP_TASK_ROBOTS
     for start in range(0, len(queued), size):
         try:
-            _send_step_task(queued[start : start + size], at)
+            _send_step_task(queued[start : start + size], at, priority)
         except Exception:
             # Unmarked, so that asking again queues them: a marker without its task would block them.
             livestate.round_trip([("DEL", *(livestate.step_marker_key(name) for name in queued[start:]))])
             raise
+    return sum(replies[len(names) :])
+
+
+def _backlog_commands() -> list[livestate.Command]:
+    """What reads the step tasks waiting in the broker, in the markers' round trip: the broker is the live
+    state's Redis unless an operator split them (then the backlog is not read, and counts as none)."""
+    if settings.CELERY_BROKER_URL != settings.REDIS_URL:
+        return []
+    return [("LLEN", key) for key in step_queue_keys()]
+
+
+class HeldSteps:
+    """The bridge's step requests. Sent at once while the step workers keep up; while step tasks wait in the
+    broker (every worker thread is busy: a worker reserves no more than it runs), held until they fill a
+    task (`STEP_TASK_ROBOTS`) or the first has waited `tuning.STEP_HOLD_SECONDS`, so that a busy fleet pays
+    Celery's hop, a step's own cost again, once per task of many robots, not per batch of states (issue 42).
+    A held robot's step would have waited behind those tasks anyway. Requests that cannot be queued (Redis
+    or the broker away) stay held and go out with the next. Used by one thread."""
+
+    def __init__(self) -> None:
+        self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
+        self._at: float | None = None  # when the first held request's cause happened (epoch s)
+        self._held_since = 0.0  # monotonic s
+        self._backlog = 0  # step tasks waiting in the broker at the last send
+
+    def request(self, names: Iterable[str], *, at: float) -> None:
+        """Ask for steps of `names` because of something that happened at `at` (epoch s)."""
+        if not self._names:
+            self._held_since = time.monotonic()
+        self._names.update(dict.fromkeys(names))
+        if self._names:
+            self._at = at if self._at is None else min(self._at, at)
+        self.send_if_due()
+
+    def send_if_due(self) -> None:
+        if self._names and self._hold_seconds() == 0.0:
+            self._backlog = queue_steps(self._names, at=self._at)
+            self._names, self._at = {}, None
+
+    def wait_seconds(self, longest: float) -> float:
+        """How long the caller may wait for something else before the held requests are due: `longest`
+        while none are held."""
+        return min(longest, self._hold_seconds()) if self._names else longest
+
+    def _hold_seconds(self) -> float:
+        if not self._backlog or len(self._names) >= settings.STEP_TASK_ROBOTS:
+            return 0.0
+        return max(0.0, self._held_since + tuning.STEP_HOLD_SECONDS - time.monotonic())
 
 
 def queue_assignment(
@@ -159,7 +228,7 @@ def assignment_run_started() -> bool:
     return marker == REASONS_ASKED.encode()
 
 
-def _send_step_task(names: list[str], at: float) -> None:
+def _send_step_task(names: list[str], at: float, priority: StepPriority) -> None:
     """Send one step task with this thread's producer, its arguments' representation (what `celery inspect`
     and Flower show) written by `repr`: Celery's pool checkout per send and its `saferepr` cost a quarter of
     a send's CPU (bench/README.md), and the bridge sends one per batch of states."""
@@ -168,6 +237,7 @@ def _send_step_task(names: list[str], at: float) -> None:
         STEP_TASK,
         args,
         queue=settings.STEP_QUEUE,
+        priority=int(priority),
         producer=_thread_producer(),
         argsrepr=repr(args),
         kwargsrepr="{}",
@@ -267,7 +337,7 @@ class _StepSender:
                 self._names, self._at, self._assignment, self._sending = {}, None, Assignment.NONE, True
                 self._zones = False
             try:
-                queue_steps(names, at=at)
+                queue_steps(names, at=at, priority=StepPriority.ASKED)
                 if assignment:
                     queue_assignment(defer_while_busy=assignment is Assignment.DEFERRED_WHILE_BUSY)
                 if zones:

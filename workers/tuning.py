@@ -28,6 +28,10 @@ DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however
 
 # A queued-step marker expires on its own, so a step lost with a killed worker cannot block later ones.
 STEP_MARKER_SECONDS = 10
+# While step tasks wait in the broker, the bridge holds its step requests until they fill a task, at most
+# this long (`step_requests.HeldSteps`): a robot's step waits this much more at worst, in a backlog it would
+# wait behind anyway; the longer, the fuller a busy fleet's tasks (bench/README.md, "The Celery hop").
+STEP_HOLD_SECONDS = 0.02
 # How long a queued assignment run keeps others from being queued, at most (its marker's expiry): a run lost
 # with a killed worker delays the next by no more than this.
 ASSIGNMENT_MARKER_SECONDS = 10

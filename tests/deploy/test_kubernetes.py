@@ -6,9 +6,10 @@ from typing import Any
 
 import pytest
 import yaml
-from django.conf import settings
+from kombu.transport.redis import PRIORITY_STEPS
 
 from tests.deploy.layout import DEMO_PROCESSES, DEPLOY, procfile_processes, tool
+from workers.step_requests import StepPriority, step_queue_keys
 
 KUSTOMIZATIONS = ["base", "overlays/example"]
 DISPATCHER_LABEL = {"app.kubernetes.io/name": "mission-dispatch"}
@@ -90,14 +91,18 @@ def test_beat_is_one_pod_never_two(example):
 def test_workers_scale_on_the_length_of_the_steps_queue(example):
     scaled = example["ScaledObject", "mission-dispatch-worker"]
     assert scaled["spec"]["scaleTargetRef"] == {"name": "mission-dispatch-worker"}
-    (trigger,) = scaled["spec"]["triggers"]
-    assert trigger["type"] == "redis"
-    # Celery's Redis transport keeps a queue as a list named after it.
-    assert trigger["metadata"]["listName"] == settings.STEP_QUEUE
-    assert trigger["metadata"]["address"].split(".")[0] == "redis-master"
+    triggers = scaled["spec"]["triggers"]
+    # kombu keeps a queue as a Redis list per priority: the asked-for steps' and the routine ones'..
+    assert [trigger["metadata"]["listName"] for trigger in triggers] == [
+        step_queue_keys()[0],
+        step_queue_keys()[PRIORITY_STEPS.index(StepPriority.ROUTINE)],
+    ]
     (config,) = [resource for (kind, _), resource in example.items() if kind == "ConfigMap"]
     redis_url = config["data"]["FLEET_REDIS_URL"]
-    assert redis_url.startswith("redis://redis-master:6379/" + trigger["metadata"]["databaseIndex"])
+    for trigger in triggers:
+        assert trigger["type"] == "redis"
+        assert trigger["metadata"]["address"].split(".")[0] == "redis-master"
+        assert redis_url.startswith("redis://redis-master:6379/" + trigger["metadata"]["databaseIndex"])
 
 
 def test_api_probes_service_and_ingress(example):

@@ -9,13 +9,17 @@ from pathlib import Path
 
 import orjson
 import pytest
+import redis
+from celery import current_app as app
 from django.conf import settings
+from kombu.transport.redis import PRIORITY_STEPS
 
 from robots import livestate
 from tests.factories import TEST_ACTOR, ZoneSetFactory
 from tests.private_redis import PrivateRedis, live_state_in
 from tests.waiting import wait_for
-from workers import step_requests
+from workers import step_requests, tuning
+from workers.step_requests import StepPriority
 from workers.tasks import plan_zones_while_enabled
 from zones.services import zone_set_enable
 
@@ -27,9 +31,10 @@ def names() -> Iterator[list[str]]:
     yield made
     redis = livestate.client()
     redis.delete(*(livestate.step_marker_key(name) for name in made))
-    for message in redis.lrange(settings.STEP_QUEUE, 0, -1):
-        if set(_robots_of(message)) & set(made):
-            redis.lrem(settings.STEP_QUEUE, 0, message)
+    for key in step_requests.step_queue_keys():
+        for message in redis.lrange(key, 0, -1):
+            if set(_robots_of(message)) & set(made):
+                redis.lrem(key, 0, message)
 
 
 def _robots_of(message: bytes) -> list[str]:
@@ -39,12 +44,16 @@ def _robots_of(message: bytes) -> list[str]:
     return orjson.loads(__import__("base64").b64decode(body["body"]))[0][0]
 
 
-def step_tasks(names: list[str]) -> list[list[str]]:
-    """The queued step tasks that carry any of `names`: the robots of each, oldest first."""
+def step_tasks(names: list[str], priority: StepPriority = StepPriority.ROUTINE) -> list[list[str]]:
+    """The step tasks queued at `priority` that carry any of `names`: the robots of each, oldest first."""
     queued = [
-        _robots_of(message) for message in reversed(livestate.client().lrange(settings.STEP_QUEUE, 0, -1))
+        _robots_of(message) for message in reversed(livestate.client().lrange(_list_of(priority), 0, -1))
     ]
     return [robots for robots in queued if set(robots) & set(names)]
+
+
+def _list_of(priority: StepPriority) -> str:
+    return step_requests.step_queue_keys()[PRIORITY_STEPS.index(priority)]
 
 
 def test_steps_go_to_the_steps_queue_a_task_per_so_many_robots(names: list[str]) -> None:
@@ -57,7 +66,7 @@ def test_steps_go_to_the_steps_queue_a_task_per_so_many_robots(names: list[str])
 def test_a_step_task_shows_celerys_tools_its_robots(names: list[str]) -> None:
     step_requests.queue_steps(names[:2], at=1234.5)
 
-    queued = livestate.client().lrange(settings.STEP_QUEUE, 0, -1)
+    queued = livestate.client().lrange(_list_of(StepPriority.ROUTINE), 0, -1)
     (message,) = [message for message in queued if _robots_of(message) == names[:2]]
     headers = orjson.loads(message)["headers"]
     assert (headers["argsrepr"], headers["kwargsrepr"]) == (repr((names[:2], 1234.5)), "{}")
@@ -85,7 +94,103 @@ def test_requests_made_while_the_sender_is_busy_go_out_together_in_tasks_of_seve
             sender.add([name], at=time.time())
 
     assert sender.wait_until_queued(timeout=10)
-    assert step_tasks(names) == [names[:8], names[8:10]]
+    assert step_tasks(names, StepPriority.ASKED) == [names[:8], names[8:10]]
+
+
+def test_a_step_a_service_asked_for_is_delivered_before_routine_ones_queued_earlier(names: list[str]) -> None:
+    _no_step_tasks_waiting()
+    step_requests.queue_steps(names[:1])  # a robot's state: routine
+    step_requests.queue_steps_soon(names[1:2])  # an API call, say a mission's start
+    assert step_requests.wait_until_queued(timeout=10)
+
+    delivered = []
+    with app.connection_for_read() as connection:  # as a worker's consumer takes them: kombu, the real broker
+        channel = connection.default_channel
+        while (message := channel.basic_get(settings.STEP_QUEUE, no_ack=True)) is not None:
+            assert message.headers["task"] == step_requests.STEP_TASK
+            delivered.append(message.decode()[0][0])
+    assert delivered == [names[1:2], names[:1]]
+
+
+def _no_step_tasks_waiting() -> None:
+    """Drop the step tasks earlier tests left (no worker takes them here)."""
+    livestate.client().delete(*step_requests.step_queue_keys())
+
+
+# --- the bridge's held requests (`HeldSteps`) -------------------------------------------------------------
+
+
+@pytest.fixture
+def backlog(names: list[str]) -> Iterator[list[str]]:
+    """A routine step task waiting in the broker, as while every worker thread is busy (no worker takes it
+    here); the robots of the test apart from its one."""
+    step_requests.queue_steps(names[-1:])
+    yield names[:-1]
+
+
+def test_requests_go_out_at_once_while_no_step_task_waits(names: list[str]) -> None:
+    _no_step_tasks_waiting()
+    held = step_requests.HeldSteps()
+    held.request(names[:1], at=1.0)
+    held.request(names[1:3], at=2.0)
+
+    assert step_tasks(names) == [names[:1], names[1:3]]
+    assert held.wait_seconds(5.0) == 5.0
+
+
+def test_while_step_tasks_wait_requests_are_held_and_go_out_together_after_the_hold(
+    backlog: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tuning, "STEP_HOLD_SECONDS", 0.3)
+    held = step_requests.HeldSteps()
+    held.request(backlog[:1], at=1.0)  # the first reads the backlog
+    began = time.monotonic()
+    held.request(backlog[1:3], at=3.0)
+    held.request(backlog[3:4], at=2.0)
+
+    assert step_tasks(backlog) == [backlog[:1]]  # held: neither a task nor a marker
+    assert not livestate.client().exists(livestate.step_marker_key(backlog[1]))
+    assert 0.0 < held.wait_seconds(5.0) <= 0.3
+    held.send_if_due()
+    assert step_tasks(backlog) == [backlog[:1]]
+
+    time.sleep(max(0.0, began + 0.3 - time.monotonic()))
+    assert held.wait_seconds(5.0) == 0.0
+    held.send_if_due()
+    assert step_tasks(backlog) == [backlog[:1], backlog[1:4]]
+    (message,) = [
+        m
+        for m in livestate.client().lrange(_list_of(StepPriority.ROUTINE), 0, -1)
+        if _robots_of(m) == backlog[1:4]
+    ]
+    assert orjson.loads(message)["headers"]["argsrepr"] == repr((backlog[1:4], 2.0))  # the earliest cause
+    assert held.wait_seconds(5.0) == 5.0
+
+
+def test_held_requests_that_fill_a_task_go_out_at_once(backlog: list[str]) -> None:
+    size = settings.STEP_TASK_ROBOTS
+    held = step_requests.HeldSteps()
+    held.request(backlog[:1], at=1.0)
+    held.request(backlog[1:size], at=1.0)
+    assert step_tasks(backlog) == [backlog[:1]]
+
+    held.request(backlog[size : size + 1], at=1.0)
+
+    assert step_tasks(backlog) == [backlog[:1], backlog[1 : size + 1]]
+
+
+def test_held_requests_that_cannot_be_queued_stay_held_and_go_out_with_the_next(
+    names: list[str], tmp_path: Path
+) -> None:
+    private = PrivateRedis(tmp_path)
+    held = step_requests.HeldSteps()
+    with live_state_in(private.url), pytest.raises(redis.ConnectionError):  # the live state's Redis away
+        held.request(names[:2], at=1.0)
+    assert held.wait_seconds(5.0) == 0.0  # due: the next loop of the bridge tries again at once
+
+    held.request(names[2:3], at=2.0)
+
+    assert step_tasks(names) == [names[:3]]
 
 
 def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
@@ -103,7 +208,7 @@ def test_a_step_request_made_while_redis_is_away_is_queued_once_it_is_back(
         finally:
             private.kill()
 
-    assert step_tasks(names) == [names[:1]]  # the broker was up all along
+    assert step_tasks(names, StepPriority.ASKED) == [names[:1]]  # the broker was up all along
 
 
 def _tasks(task: str) -> list[bytes]:

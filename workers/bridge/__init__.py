@@ -5,7 +5,8 @@ UPDATE per flush period for the robots whose status changed, and a step runs onl
 engine cares about changed (`dispatch.held.state_digest`). A robot that only took the order its last
 step sent needs no step either (`dispatch.held.takes_order_only`): the flush marks the order accepted,
 so that the sweep does not send it again. The bridge runs no step itself: it queues them for the Celery
-step workers (`workers.step_requests.queue_steps`), one request per batch of states. Several bridges may
+step workers (`workers.step_requests.HeldSteps`), one request per batch of states, held while the workers
+have a backlog until the requests fill a task. Several bridges may
 run at once with an MQTT shared subscription (`FLEET_BRIDGE_SHARE_GROUP`): the Redis script orders each
 robot's states by the robot's own timestamp and headerId, so it does not matter which bridge sees what.
 A message it cannot take is dropped and counted by reason (`Drop`), one older than the robot's last on its

@@ -31,7 +31,7 @@ from workers.bridge.gate import Drop, DropLog, Dropped, Ignored, Received, read,
 from workers.bridge.status_writer import StatusWriter
 from workers.long_lived import keep_trying, settle_long_lived_process
 from workers.mqtt import new_client
-from workers.step_requests import queue_steps
+from workers.step_requests import HeldSteps, queue_steps
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +46,7 @@ class Bridge:
         )  # topic, payload, arrival
         self.directory = RobotDirectory()
         self.status_writer = StatusWriter()
+        self.steps = HeldSteps()
         self.client = new_client("bridge")
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message
@@ -96,12 +97,14 @@ class Bridge:
         queue_steps(robots_with_missions())
 
     def run_once(self, timeout: float) -> None:
-        """Handle whatever arrived (waiting up to `timeout` for something, then up to
-        tuning.BATCH_WINDOW_SECONDS for more); then hand the status writer its flush if one is due."""
-        batch = self._drain(timeout)
+        """Handle whatever arrived (waiting up to `timeout` for something, or until held step requests are
+        due, then up to tuning.BATCH_WINDOW_SECONDS for more); then send the held step requests and hand
+        the status writer its flush if either is due."""
+        batch = self._drain(self.steps.wait_seconds(timeout))
         drop_broken_connections()
         if batch:
             self.handle([(topic, payload) for topic, payload, _ in batch], received_at=batch[0][2])
+        self.steps.send_if_due()
         self.status_writer.hand_off_if_due()
 
     def _drain(self, timeout: float) -> list[tuple[str, bytes, float]]:
@@ -259,7 +262,7 @@ class Bridge:
                     Robot.objects.filter(name=name).update(online=False)
                     changed.add(name)
         finally:
-            queue_steps(changed | set(came_online) | disconnected, at=received_at)
+            self.steps.request(changed | set(came_online) | disconnected, at=received_at)
 
     def _learn_version(self, received: Received) -> bool:
         """Speak to the robot the version its message says (the newest we speak of its major version, see
