@@ -113,6 +113,7 @@ SUITES["n2000"] = {
 }
 # Saturation at N=100 alone, for A/B pairs of a change to the CPU per order (bench/README.md).
 SUITES["saturation"] = {"saturation-n100": SUITES["short"]["saturation-n100"]}
+SUITES["realistic"] = {"realistic-n1000": SUITES["short"]["realistic-n1000"]}
 # Missions without a robot (issue 41; bench/README.md "Assignment"): a burst of one mission per idle robot,
 # and the realistic fleet at N=1000 with its missions unbound and, to compare, the same run named.
 UNBOUND_N1000 = ["--unbound", "--nodes", "1", "--robots", "1000"]
