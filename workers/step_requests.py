@@ -75,7 +75,7 @@ def queue_steps(
     names: Iterable[str], *, at: float | None = None, priority: StepPriority = StepPriority.ROUTINE
 ) -> int:
     """Queue a step for each robot that has none queued yet; `at` is when the cause happened (epoch s).
-    Returns the step tasks that were waiting in the broker before these (`_backlog_commands`).
+    Returns the step tasks waiting in the broker that these queue behind (`_backlog_commands`).
 
     One Redis round trip marks them (and reads the backlog), one Celery task per `STEP_TASK_ROBOTS` of them
     carries them."""
@@ -86,7 +86,7 @@ def queue_steps(
     marks: list[livestate.Command] = [
         ("SET", livestate.step_marker_key(name), 1, "NX", "EX", tuning.STEP_MARKER_SECONDS) for name in names
     ]
-    replies = _replies(marks + _backlog_commands())
+    replies = _replies(marks + _backlog_commands(priority))
     queued = [name for name, reply in zip(names, replies[: len(names)], strict=True) if reply is not None]
     size = settings.STEP_TASK_ROBOTS
     for start in range(0, len(queued), size):
@@ -99,27 +99,34 @@ def queue_steps(
     return sum(replies[len(names) :])
 
 
-def _backlog_commands() -> list[livestate.Command]:
-    """What reads the step tasks waiting in the broker, in the markers' round trip: the broker is the live
-    state's Redis unless an operator split them (then the backlog is not read, and counts as none)."""
+def _backlog_commands(priority: StepPriority) -> list[livestate.Command]:
+    """What reads the step tasks waiting in the broker that a task of `priority` would wait behind (those
+    of its priority and before), in the markers' round trip: the broker is the live state's Redis unless an
+    operator split them (then the backlog is not read, and counts as none)."""
     if settings.CELERY_BROKER_URL != settings.REDIS_URL:
         return []
-    return [("LLEN", key) for key in step_queue_keys()]
+    ahead = kombu.transport.redis.PRIORITY_STEPS.index(priority) + 1
+    return [("LLEN", key) for key in step_queue_keys()[:ahead]]
 
 
 class HeldSteps:
-    """The bridge's step requests. Sent at once while the step workers keep up; while step tasks wait in the
-    broker (every worker thread is busy: a worker reserves no more than it runs), held until they fill a
-    task (`STEP_TASK_ROBOTS`) or the first has waited `tuning.STEP_HOLD_SECONDS`, so that a busy fleet pays
-    Celery's hop, a step's own cost again, once per task of many robots, not per batch of states (issue 42).
-    A held robot's step would have waited behind those tasks anyway. Requests that cannot be queued (Redis
-    or the broker away) stay held and go out with the next. Used by one thread."""
+    """Step requests of one thread (the bridge's loop, a process's sender thread), at one priority. Sent at
+    once while the step workers keep up; while step tasks it would queue behind wait in the broker (every
+    worker thread is busy: a worker reserves no more than it runs), held until they fill a task
+    (`STEP_TASK_ROBOTS`) or the first has waited `tuning.STEP_HOLD_SECONDS`, so that a busy fleet pays
+    Celery's hop, a step's own cost again, once per task of many robots, not per batch of states or per API
+    call (issue 42). A held robot's step would have waited behind those tasks anyway. Requests that cannot
+    be queued (Redis or the broker away) stay held and go out with the next."""
 
-    def __init__(self) -> None:
+    def __init__(self, priority: StepPriority = StepPriority.ROUTINE) -> None:
+        self.priority = priority
         self._names: dict[str, None] = {}  # insertion-ordered: robots are stepped in request order
         self._at: float | None = None  # when the first held request's cause happened (epoch s)
         self._held_since = 0.0  # monotonic s
-        self._backlog = 0  # step tasks waiting in the broker at the last send
+        self._backlog = 0  # step tasks ahead of these in the broker at the last send
+
+    def __bool__(self) -> bool:
+        return bool(self._names)
 
     def request(self, names: Iterable[str], *, at: float) -> None:
         """Ask for steps of `names` because of something that happened at `at` (epoch s)."""
@@ -132,13 +139,16 @@ class HeldSteps:
 
     def send_if_due(self) -> None:
         if self._names and self._hold_seconds() == 0.0:
-            self._backlog = queue_steps(self._names, at=self._at)
+            self._backlog = queue_steps(self._names, at=self._at, priority=self.priority)
             self._names, self._at = {}, None
 
-    def wait_seconds(self, longest: float) -> float:
+    def wait_seconds(self, longest: float | None) -> float | None:
         """How long the caller may wait for something else before the held requests are due: `longest`
-        while none are held."""
-        return min(longest, self._hold_seconds()) if self._names else longest
+        (None: for ever) while none are held."""
+        if not self._names:
+            return longest
+        hold = self._hold_seconds()
+        return hold if longest is None else min(longest, hold)
 
     def _hold_seconds(self) -> float:
         if not self._backlog or len(self._names) >= settings.STEP_TASK_ROBOTS:
@@ -257,11 +267,13 @@ def _thread_producer() -> kombu.Producer:
 
 
 def queue_steps_soon(names: Iterable[str]) -> None:
-    """`queue_steps` from this process's sender thread, which the caller does not wait for.
+    """`queue_steps` at `StepPriority.ASKED` from this process's sender thread, which the caller does not
+    wait for.
 
     For callers whose change is committed already (an API request, beat's heartbeat check): the change
     stands whether or not its step can be queued now, so the caller must not fail for it. Requests made
-    while the sender sends go out together with the next send: under a burst of API requests a task
+    while the sender sends go out together with the next send, and while asked-for step tasks wait in the
+    broker they are held until they fill a task (`HeldSteps`): under a burst of API requests a task
     carries several robots, and Celery's cost per task is paid once for them.
     """
     _sender.add(names, at=time.time())
@@ -296,6 +308,7 @@ class _StepSender:
         self._zones = False
         self._at: float | None = None  # when the oldest of them was requested
         self._sending = False
+        self._holding = False  # the sender thread holds requests back (`HeldSteps`)
         self._changed = threading.Condition()
         self._thread: threading.Thread | None = None
 
@@ -323,21 +336,30 @@ class _StepSender:
         """Wait until every request made so far is queued (at exit); False if `timeout` s passed first."""
         with self._changed:
             return self._changed.wait_for(
-                lambda: not self._names and not self._assignment and not self._zones and not self._sending,
+                lambda: (
+                    not self._names
+                    and not self._assignment
+                    and not self._zones
+                    and not self._sending
+                    and not self._holding
+                ),
                 timeout,
             )
 
     def _send_forever(self) -> None:
+        held = HeldSteps(StepPriority.ASKED)
         failing = False
         while True:
             with self._changed:
-                self._changed.wait_for(lambda: self._names or self._assignment or self._zones)
+                self._changed.wait_for(
+                    lambda: self._names or self._assignment or self._zones, held.wait_seconds(None)
+                )
                 names, at, assignment = list(self._names), self._at or time.time(), self._assignment
                 zones = self._zones
                 self._names, self._at, self._assignment, self._sending = {}, None, Assignment.NONE, True
                 self._zones = False
             try:
-                queue_steps(names, at=at, priority=StepPriority.ASKED)
+                held.request(names, at=at)  # kept while they are not queued
                 if assignment:
                     queue_assignment(defer_while_busy=assignment is Assignment.DEFERRED_WHILE_BUSY)
                 if zones:
@@ -348,7 +370,7 @@ class _StepSender:
                         "steps not queued (%s); trying again every %s s", error, tuning.UNQUEUED_RETRY_SECONDS
                     )
                 failing = True
-                self.add(names, at=at, assignment=assignment, zones=zones)
+                self.add((), at=at, assignment=assignment, zones=zones)
                 time.sleep(tuning.UNQUEUED_RETRY_SECONDS)
             else:
                 if failing:
@@ -356,7 +378,7 @@ class _StepSender:
                 failing = False
             finally:
                 with self._changed:
-                    self._sending = False
+                    self._sending, self._holding = False, bool(held)
                     self._changed.notify_all()
 
 

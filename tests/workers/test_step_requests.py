@@ -167,6 +167,41 @@ def test_while_step_tasks_wait_requests_are_held_and_go_out_together_after_the_h
     assert held.wait_seconds(5.0) == 5.0
 
 
+def test_while_asked_for_step_tasks_wait_the_sender_holds_its_requests_until_the_hold_ends(
+    names: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tuning, "STEP_HOLD_SECONDS", 0.3)
+    _no_step_tasks_waiting()
+    step_requests.queue_steps(names[-1:], priority=StepPriority.ASKED)  # waits: no worker takes it here
+    sender = step_requests._StepSender()
+    sender.add(names[:1], at=time.time())
+    assert sender.wait_until_queued(timeout=10)  # sent at once: the sender had not seen the backlog yet
+
+    began = time.monotonic()
+    sender.add(names[1:2], at=time.time())
+    sender.add(names[2:3], at=time.time())
+    time.sleep(0.1)
+    assert step_tasks(names, StepPriority.ASKED) == [names[-1:], names[:1]]  # held
+
+    assert sender.wait_until_queued(timeout=10)  # the hold counts as not queued yet
+    assert time.monotonic() - began >= 0.3
+    assert step_tasks(names, StepPriority.ASKED) == [names[-1:], names[:1], names[1:3]]
+
+
+def test_routine_step_tasks_waiting_hold_no_asked_for_request(
+    names: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tuning, "STEP_HOLD_SECONDS", 5.0)
+    _no_step_tasks_waiting()
+    step_requests.queue_steps(names[-1:])  # routine: an asked-for task would not wait behind it
+    sender = step_requests._StepSender()
+    for name in names[:2]:
+        sender.add([name], at=time.time())
+        assert sender.wait_until_queued(timeout=2)
+
+    assert step_tasks(names, StepPriority.ASKED) == [names[:1], names[1:2]]
+
+
 def test_held_requests_that_fill_a_task_go_out_at_once(backlog: list[str]) -> None:
     size = settings.STEP_TASK_ROBOTS
     held = step_requests.HeldSteps()
