@@ -1,10 +1,13 @@
 """Reads of API tokens, and whether what a request authenticated with is still usable."""
 
 import re
+import threading
+import time
 from collections.abc import Collection
 from dataclasses import dataclass
 from datetime import timedelta
 
+from django.conf import settings
 from django.contrib.auth import HASH_SESSION_KEY, get_user_model
 from django.contrib.auth.base_user import AbstractBaseUser
 from django.contrib.sessions.models import Session
@@ -35,10 +38,40 @@ def api_token_list() -> QuerySet[ApiToken]:
     return ApiToken.objects.order_by("created", "name")
 
 
+# Tokens this process found usable: plaintext -> (monotonic s until which it is taken as usable, token).
+# A few per client, so the bound only keeps made-up traffic from growing it.
+_usable: dict[str, tuple[float, ApiToken]] = {}
+_USABLE_MAX = 1000
+_usable_lock = threading.Lock()
+
+
 def api_token_for_key(key: str) -> ApiToken | None:
-    """The usable token whose plaintext is `key` (not revoked, not expired), or None."""
+    """The usable token whose plaintext is `key` (not revoked, not expired), or None. A token found usable
+    is taken as such by this process for `API_TOKEN_CACHE_SECONDS` (its expiry still checked)."""
     if not TOKEN_PATTERN.match(key):
         return None
+    now = time.monotonic()
+    cached = _usable.get(key)
+    if cached is not None and now < cached[0] and not cached[1].has_expired:
+        return cached[1]
+    token = _api_token_looked_up(key)
+    with _usable_lock:
+        if token is None or settings.API_TOKEN_CACHE_SECONDS <= 0:
+            _usable.pop(key, None)
+        else:
+            if len(_usable) >= _USABLE_MAX:
+                _usable.clear()
+            _usable[key] = (now + settings.API_TOKEN_CACHE_SECONDS, token)
+    return token
+
+
+def api_tokens_forget() -> None:
+    """Look every token up again (this process revoked one)."""
+    with _usable_lock:
+        _usable.clear()
+
+
+def _api_token_looked_up(key: str) -> ApiToken | None:
     prefix, _, _ = key.partition(".")
     with connection.cursor() as cursor:
         cursor.execute(USABLE_TOKEN_BY_PREFIX, [prefix])

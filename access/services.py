@@ -11,7 +11,7 @@ from django.db import IntegrityError, transaction
 
 from access.choices import WriteAction
 from access.models import TOKEN_NAME_MAX_LENGTH, ApiToken, WriteRecord
-from access.selectors import api_token_for_key
+from access.selectors import api_token_for_key, api_tokens_forget
 from kit.api.errors import UsageError
 
 # The token `make run` keeps for the developer (`api_token dev`).
@@ -40,6 +40,7 @@ def api_token_revoke(*, name: str) -> ApiToken:
             raise UsageError(f'No usable token named "{name}": it does not exist or is revoked already.')
         token.revoked = True
         token.save(update_fields=["revoked"])
+    api_tokens_forget()  # refused by this process at once; by the others within API_TOKEN_CACHE_SECONDS
     return token
 
 

@@ -162,6 +162,10 @@ WHITENOISE_USE_FINDERS = True
 API_PORT = env_int("FLEET_API_PORT", 5000)
 # Off: the reference's open API, for trusted networks only (the API process warns at start).
 API_AUTH = env_bool("FLEET_API_AUTH", True)
+# An API process takes a token it found usable as usable again for this long without asking PostgreSQL (the
+# lookup was a round trip per request): a token revoked (by another process) or expired is refused up to
+# this late. 0: every request looks it up.
+API_TOKEN_CACHE_SECONDS = env_float("FLEET_API_TOKEN_CACHE_SECONDS", 2.0)
 # REST requests an API process (fleet.asgi) runs at once, each on a thread of its own that keeps its
 # database connection; more wait their turn. Open streams are not counted: they take no thread.
 API_THREADS = env_int("FLEET_API_THREADS", 4)

@@ -1,6 +1,7 @@
 """Who may call which endpoint, for every endpoint the URLconf has (tests/access/endpoints.py): 401 without
 usable credentials, 403 for a read-only token's writes, reads for any usable token; public endpoints open."""
 
+import time
 from datetime import timedelta
 
 import pytest
@@ -8,6 +9,7 @@ from django.test import override_settings
 from django.utils import timezone
 from rest_framework.test import APIClient
 
+from access import selectors
 from access.models import ApiToken, WriteRecord
 from access.permissions import NOT_AUTHENTICATED
 from access.services import api_token_create, api_token_revoke
@@ -218,6 +220,47 @@ def test_an_expired_token_answers_401():
 
     assert response.status_code == 401
     assert response.json() == {"detail": "Invalid token: unknown, revoked or expired."}
+
+
+def test_a_token_used_once_is_taken_as_usable_for_the_cache_time_and_then_looked_up_again():
+    _, key = api_token_create(name="cached")
+    client = authenticated_client(key)
+    with override_settings(API_TOKEN_CACHE_SECONDS=2.0):
+        assert client.get("/robot").status_code == 200
+        looked_up = time.monotonic()
+        ApiToken.objects.filter(name="cached").update(revoked=True)  # as another process's revoke does
+
+        assert client.get("/robot").status_code == 200  # not asked again
+        time.sleep(max(0.0, looked_up + 2.0 - time.monotonic()))
+
+        assert client.get("/robot").status_code == 401
+
+
+def test_a_token_revoked_by_this_process_or_expired_is_refused_at_once_though_cached():
+    _, revoked = api_token_create(name="revoked")
+    token, expiring = api_token_create(name="expiring")
+    expiry = timezone.now() + timedelta(seconds=0.5)
+    ApiToken.objects.filter(pk=token.pk).update(expiry_date=expiry)
+    with override_settings(API_TOKEN_CACHE_SECONDS=60):
+        assert authenticated_client(revoked).get("/robot").status_code == 200
+        assert authenticated_client(expiring).get("/robot").status_code == 200
+        assert expiring in selectors._usable  # cached for a minute
+
+        time.sleep(max(0.0, (expiry - timezone.now()).total_seconds()) + 0.05)
+        assert authenticated_client(expiring).get("/robot").status_code == 401
+
+        api_token_revoke(name="revoked")
+        assert authenticated_client(revoked).get("/robot").status_code == 401
+
+
+def test_without_the_cache_every_request_looks_the_token_up():
+    _, key = api_token_create(name="uncached")
+    client = authenticated_client(key)
+    with override_settings(API_TOKEN_CACHE_SECONDS=0):
+        assert client.get("/robot").status_code == 200
+        ApiToken.objects.filter(name="uncached").update(revoked=True)
+
+        assert client.get("/robot").status_code == 401
 
 
 def test_a_token_with_a_known_prefix_and_another_secret_answers_401():
