@@ -26,7 +26,7 @@ TOKEN_PATTERN = re.compile(r"\A[A-Za-z0-9]{1,50}\.[A-Za-z0-9]{1,100}\Z")
 LAST_USED_RESOLUTION = timedelta(minutes=1)
 # Every request runs this lookup: one fixed statement on a plain cursor, its row made a model as the ORM
 # makes one (`from_db`), because building the query with the ORM, or reading it through a raw queryset,
-# cost more CPU than PostgreSQL spends running it (bench/README.md). `prefix` is unique.
+# cost more CPU than PostgreSQL spends running it (bench/HISTORY.md). `prefix` is unique.
 TOKEN_FIELDS = [field.attname for field in ApiToken._meta.concrete_fields]
 USABLE_TOKEN_BY_PREFIX = (
     f"SELECT {', '.join(field.column for field in ApiToken._meta.concrete_fields)} "

@@ -14,7 +14,7 @@ requests wait there: no worker runs), with nothing else competing for the CPU:
     FLEET_DB_NAME=mission_dispatch_bench FLEET_REDIS_URL=redis://127.0.0.1:6379/3 \
         .venv/bin/python -m bench.api_layout --pairs 4 --streams 50
 
-Results and the machine's calibration figure: bench/README.md, "One port for the API and the streams".
+Results and the machine's calibration figure: bench/HISTORY.md, "One port for the API and the streams".
 """
 
 from __future__ import annotations

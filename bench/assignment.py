@@ -7,7 +7,7 @@ alone on the raw distances, the pairs no robot can do excluded):
 
     .venv/bin/python -m bench.assignment [--sizes 100x100 1000x1000 1000x1000/lift] [--repeats 5]
 
-Results: bench/README.md, "Assignment".
+Results: bench/HISTORY.md, "Assignment".
 """
 
 from __future__ import annotations

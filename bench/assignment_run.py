@@ -5,7 +5,7 @@ queued (no Celery needed); the run's robots and missions, `assignment-bench-*`, 
 
     .venv/bin/python -m bench.assignment_run [--size 1000] [--repeats 3]
 
-Against the database of FLEET_DB_NAME (`make run`'s, or any migrated one). Results: bench/README.md,
+Against the database of FLEET_DB_NAME (`make run`'s, or any migrated one). Results: bench/HISTORY.md,
 "Assignment".
 """
 

@@ -11,7 +11,7 @@ also runs from another source tree (e.g. `git archive <rev> | tar -x -C /tmp/md-
 
     FLEET_SECRET_KEY=... FLEET_REDIS_URL=redis://127.0.0.1:6379/4 .venv/bin/python -m bench.celery_worker
 
-Results and the machine's calibration figure: bench/README.md.
+Results and the machine's calibration figure: bench/HISTORY.md.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ rows):
 
     FLEET_DB_NAME=mission_dispatch_bench .venv/bin/python -m bench.changes_ab
 
-Results and the machine's calibration figure: bench/README.md, "Change feed".
+Results and the machine's calibration figure: bench/HISTORY.md, "Change feed".
 """
 
 import argparse

@@ -10,7 +10,7 @@ no bridge or simulator is needed:
 
     FLEET_PAGE_PASSWORD=... .venv/bin/python -m bench.fleet_page --username admin --robots 1000
 
-Results: bench/README.md, "Live fleet page".
+Results: bench/HISTORY.md, "Live fleet page".
 """
 
 import argparse

@@ -9,7 +9,7 @@ process. Run on a database and a Redis database of their own:
         .venv/bin/python -m bench.pg_cost --missions 600
 
 The WAL figure is the server's: nothing else may write to PostgreSQL meanwhile. To compare two versions,
-migrate a database from each tree and alternate the two runs. Results: bench/README.md, "What the feed
+migrate a database from each tree and alternate the two runs. Results: bench/HISTORY.md, "What the feed
 records".
 """
 

@@ -5,7 +5,7 @@ Celery's publishing. Run on a database of its own (it creates robots, missions a
     FLEET_DB_NAME=mission_dispatch_bench FLEET_REDIS_URL=redis://127.0.0.1:6379/3 \\
         .venv/bin/python -m bench.request_cpu --calls 500
 
-Results and the machine's calibration figure: bench/README.md, "The full suite at a2d47bb".
+Results and the machine's calibration figure: bench/HISTORY.md, "The full suite at a2d47bb".
 """
 
 import argparse

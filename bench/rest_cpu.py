@@ -12,7 +12,7 @@ for a step, which waits in Redis). Run on a database of its own, migrated, with 
         .venv/bin/python -m bench.rest_cpu --a . --b /tmp/md-base --rounds 20
 
 `--b` is another checkout (e.g. `git archive <rev> | tar -x -C /tmp/md-base` with a link to this
-`.venv`). Results: bench/README.md.
+`.venv`). Results: bench/HISTORY.md.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ missions get robots first (a maximum-weight matching with weights that fall with
 matroid's greedy basis, so the oldest set wins), then the distances among them. Globally good needs the
 whole burst at once: while missions arrive faster than robots could be chosen for them and free robots
 outnumber them, binding waits (`burst_hold`), since a burst bound as it arrives drives far further (a
-1,000 x 1,000 burst bound in two halves: +12 % over the optimum; as it arrived: +96 %, bench/README.md).
+1,000 x 1,000 burst bound in two halves: +12 % over the optimum; as it arrived: +96 %, bench/HISTORY.md).
 """
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ class ApiHandler(ASGIHandler):
     """Django's ASGI handler, but a request's middleware and view run as under WSGI: in one call on the
     request's thread. In its async mode the handler goes back and forth between the event loop and the
     thread around each middleware (WhiteNoise's and ours are sync only), a dozen round trips a request
-    that cost REST requests milliseconds (bench/README.md, "One port for the API and the streams")."""
+    that cost REST requests milliseconds (bench/HISTORY.md, "One port for the API and the streams")."""
 
     def load_middleware(self, is_async: bool = False) -> None:
         super().load_middleware(is_async=False)
@@ -67,7 +67,7 @@ class RestHandler(ApiHandler):
     async def serve(self, scope: Scope, receive: Receive, send: Any, thread: ThreadPoolExecutor) -> None:
         """Serve the request with `thread`, which `application` lent it. Run there in a copy of this task's
         context, as asgiref's sync_to_async would run it, without its ThreadSensitiveContext machinery,
-        which cost a tenth of a REST request's CPU (bench/README.md)."""
+        which cost a tenth of a REST request's CPU (bench/HISTORY.md)."""
         try:
             body = await _body(receive)
         except RequestAborted:

@@ -16,7 +16,7 @@ app.autodiscover_tasks()
 def __getattr__(name: str) -> Any:
     """`celery_settings`: Django's CELERY_ settings copied into a dict when Celery first reads its
     configuration. Celery looks it up several times for every task it sends or receives, and each look
-    through Django's lazy settings object cost more than a dict's (bench/README.md)."""
+    through Django's lazy settings object cost more than a dict's (bench/HISTORY.md)."""
     if name == "celery_settings":
         from django.conf import settings
 

@@ -16,7 +16,7 @@ def api_process_start() -> None:
     What is loaded now lives as long as the worker: the URLconf imports the views and serializers (else the
     first request would), then everything is frozen out of the garbage collector's sight. Unfrozen, the full
     collections walked all of Django every few seconds under load and stopped every request the worker was
-    serving meanwhile (bench/README.md has how long).
+    serving meanwhile (bench/HISTORY.md has how long).
     """
     if not settings.API_AUTH:
         logging.getLogger("fleet.api").warning(

@@ -269,7 +269,7 @@ CELERY_TASK_REJECT_ON_WORKER_LOST = True
 # A worker reserves no task it cannot run at once: a step a service asked for (`StepPriority.ASKED`) then
 # waits behind no reserved routine ones, and the broker's lists show the backlog the bridge holds its
 # requests for (`workers.step_requests.HeldSteps`). Prefetch does not change Celery's CPU per task
-# (bench/README.md: 0.99 against 4).
+# (bench/HISTORY.md: 0.99 against 4).
 CELERY_WORKER_PREFETCH_MULTIPLIER = env_int("FLEET_CELERY_PREFETCH", 1)
 # No task has a rate limit: the worker skips their bookkeeping for every task.
 CELERY_WORKER_DISABLE_RATE_LIMITS = True

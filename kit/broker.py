@@ -23,7 +23,7 @@ class QoS(kombu.transport.redis.QoS):
     """kombu keeps each delivered task in Redis until it is acknowledged (so that a killed worker's tasks
     are delivered again): a write when the task arrives and one when it is done. Each is one round trip
     here, as kombu's transaction, on the thread's own connection: through redis-py's pipeline they cost
-    twice the CPU, a tenth of a step worker's CPU per task (bench/README.md)."""
+    twice the CPU, a tenth of a step worker's CPU per task (bench/HISTORY.md)."""
 
     def append(self, message: Message, delivery_tag: str) -> None:
         delivery = message.delivery_info
@@ -55,7 +55,7 @@ class Channel(kombu.transport.redis.Channel):
     def conn_or_acquire(self, client: redis.Redis | None = None) -> Iterator[redis.Redis]:
         """One client per connection pool, where kombu made a new one for every publish, delivery and
         acknowledgement: building a redis-py client (its response callbacks) was 7 % of a step worker's
-        and of the bridge's CPU (bench/README.md). A client is thread-safe: each command takes a
+        and of the bridge's CPU (bench/HISTORY.md). A client is thread-safe: each command takes a
         connection from the pool."""
         if client is not None:
             yield client

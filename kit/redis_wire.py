@@ -2,7 +2,7 @@
 
 redis-py 8's pipeline and pool spend as much CPU per round trip on their bookkeeping (retry closures,
 observability hooks, the pool's checkout with its readiness poll, response callbacks) as the round trip's
-own work (bench/README.md), and the bridge, every step and every Celery task's acknowledgement make round
+own work (bench/HISTORY.md), and the bridge, every step and every Celery task's acknowledgement make round
 trips all the time. Imports only redis: the Celery broker's transport (`kit.broker`) uses it too.
 """
 

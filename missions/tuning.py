@@ -19,7 +19,7 @@ MAX_NOTIFY_TIMEOUT = 86_400
 # first: `missions.services.mission_claim`); one that suits none of them waits for the assignment run.
 CLAIM_PAGE = 16
 # Reads of that page per claim: robots falling free together take the same page's missions one by one, and
-# a claim whose choices all went to others (2-3 % of claims at N=1000, bench/README.md "Assignment") reads it
+# a claim whose choices all went to others (2-3 % of claims at N=1000, bench/HISTORY.md "Assignment") reads it
 # again rather than leave its robot idle for an assignment run.
 CLAIM_TRIES = 2
 

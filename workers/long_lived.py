@@ -40,7 +40,7 @@ def settle_long_lived_process() -> None:
 
     What is loaded by then (Django, the apps, the robot directory) lives as long as the process: frozen, it
     is out of the garbage collector's sight, whose full collections walked it and stopped the process
-    every few seconds (bench/README.md has how long). The short switch interval is for the threads that
+    every few seconds (bench/HISTORY.md has how long). The short switch interval is for the threads that
     wait on round trips.
     """
     gc.freeze()

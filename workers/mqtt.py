@@ -100,7 +100,7 @@ class Publisher:
         """Queue the message and write it from this thread; False if paho dropped it (no connection).
 
         paho's own network thread writes it only once it has woken up and taken the interpreter lock,
-        which in a process busy with steps is milliseconds later (bench/README.md has the figures)."""
+        which in a process busy with steps is milliseconds later (bench/HISTORY.md has the figures)."""
         info = self._client.publish(topic, payload, qos=qos)
         self._client.write_queued()
         return info.rc == mqtt.MQTT_ERR_SUCCESS

@@ -241,7 +241,7 @@ def assignment_run_started() -> bool:
 def _send_step_task(names: list[str], at: float, priority: StepPriority) -> None:
     """Send one step task with this thread's producer, its arguments' representation (what `celery inspect`
     and Flower show) written by `repr`: Celery's pool checkout per send and its `saferepr` cost a quarter of
-    a send's CPU (bench/README.md), and the bridge sends one per batch of states."""
+    a send's CPU (bench/HISTORY.md), and the bridge sends one per batch of states."""
     args = (names, at)
     app.send_task(
         STEP_TASK,

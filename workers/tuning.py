@@ -8,12 +8,12 @@ as `tuning.NAME` where they are used, so that a test that patches one here chang
 
 # Messages handled per pipeline round trip. A batch's steps are requested once all of it is handled, so a
 # backlog (the bridge starved of CPU for a moment) is worked off in small batches: with 2,000, a state
-# that needs a step waited behind hundreds of periodic ones (bench/README.md, "What changed": N=2000).
+# that needs a step waited behind hundreds of periodic ones (bench/HISTORY.md, "What changed": N=2000).
 BATCH_LIMIT = 100
 # A batch also takes what arrives this long after its first message. A batch's Redis round trip costs the
 # processing thread several times a state's own work, and without the window a busy fleet's batches held
 # only a few states: a state now waits up to the window more, and the machine has that CPU for the steps
-# (bench/README.md, "What changed").
+# (bench/HISTORY.md, "What changed").
 BATCH_WINDOW_SECONDS = 0.002
 DIRECTORY_REFRESH_SECONDS = 2.0  # an unknown robot triggers at most one directory reload this often
 LAST_STATE_AT_PERIOD = 10.0  # seconds between last_state_at writes of a robot whose status is unchanged
@@ -30,7 +30,8 @@ DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however
 STEP_MARKER_SECONDS = 10
 # While step tasks wait in the broker, the bridge holds its step requests until they fill a task, at most
 # this long (`step_requests.HeldSteps`): a robot's step waits this much more at worst, in a backlog it would
-# wait behind anyway; the longer, the fuller a busy fleet's tasks (bench/README.md, "The Celery hop").
+# wait behind anyway; the longer, the fuller a busy fleet's tasks (robots per task: bench/HISTORY.md,
+# "Against the design before the Celery steps once more").
 STEP_HOLD_SECONDS = 0.02
 # How long a queued assignment run keeps others from being queued, at most (its marker's expiry): a run lost
 # with a killed worker delays the next by no more than this.
@@ -58,7 +59,7 @@ RETRY_FIRST_SECONDS = 0.5
 RETRY_MAX_SECONDS = 10.0
 # A thread whose reply came in takes the interpreter lock back only when the thread holding it lets go:
 # at Python's default 5 ms a reply waited up to that long behind one thread's Python code, after every
-# round trip of a step (bench/README.md has what 0.5 ms did to step latency).
+# round trip of a step (bench/HISTORY.md has what 0.5 ms did to step latency).
 SWITCH_INTERVAL_SECONDS = 0.0005
 
 # --- the MQTT clients (`workers.mqtt`) -------------------------------------------------------------------
