@@ -30,8 +30,7 @@ DROP_LOG_SECONDS = 10.0  # one log line per topic and reason this often, however
 STEP_MARKER_SECONDS = 10
 # While step tasks wait in the broker, the bridge holds its step requests until they fill a task, at most
 # this long (`step_requests.HeldSteps`): a robot's step waits this much more at worst, in a backlog it would
-# wait behind anyway; the longer, the fuller a busy fleet's tasks (robots per task: bench/HISTORY.md,
-# "Against the design before the Celery steps once more").
+# wait behind anyway; the longer, the fuller a busy fleet's tasks (bench/HISTORY.md, "The Celery hop").
 STEP_HOLD_SECONDS = 0.02
 # How long a queued assignment run keeps others from being queued, at most (its marker's expiry): a run lost
 # with a killed worker delays the next by no more than this.
