@@ -7,8 +7,9 @@ for a change of a mission or robot, the heartbeat check). A robot whose step is 
 queued gets no second one; its marker is cleared when its step reads the robot's state
 (`robots.livestate.state_for_step`), so a change that arrives during the step queues one more. A task
 carries several robots when a bridge batch or a sweep asks for several: Celery's cost per task is of the
-order of a step's own, so while step tasks wait in the broker the bridge holds its requests until they fill
-a task (`HeldSteps`). Steps a service asked for go before those of robots' states (`StepPriority`).
+order of a step's own, so while step tasks wait in the broker the bridge and the sender threads hold their
+requests until they fill a task (`HeldSteps`). Steps a service asked for go before those of robots' states
+(`StepPriority`).
 """
 
 import atexit
