@@ -53,14 +53,14 @@ def test_no_token_an_unknown_or_a_revoked_one_is_refused(server, db):
 
     # The API process takes the token as usable for FLEET_API_TOKEN_CACHE_SECONDS after its last lookup
     # (the wait's room beyond that: a slow machine).
-    def answer_if_refused() -> requests.Response | None:
+    def refusal() -> dict[str, str] | None:
         answer = requests.post(url, json=INITIALIZE, headers=revoked, timeout=10)
-        return answer if answer.status_code == 401 else None
+        return answer.json() if answer.status_code == 401 else None  # (a 401 Response is falsy)
 
-    response = wait_for(
-        answer_if_refused, "the revoked token refused", timeout=settings.API_TOKEN_CACHE_SECONDS + 5
+    refused_with = wait_for(
+        refusal, "the revoked token refused", timeout=settings.API_TOKEN_CACHE_SECONDS + 5
     )
-    assert "revoked" in response.json()["detail"]
+    assert "revoked" in refused_with["detail"]
     with pytest.raises(Exception) as refused:  # the SDK's client gets the 401 as an HTTP error
         with_session(server.api_url, key, lambda session: session.list_tools())
     assert "401" in repr(refused.value) or any(
