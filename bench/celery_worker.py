@@ -40,10 +40,11 @@ from fleet.celery import app  # noqa: E402
 from robots import livestate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-# The step worker of deploy/Procfile first; then what it was chosen against.
+# The step worker of deploy/Procfile first (its prefetch multiplier is the settings' default, 1); then what it
+# was chosen against.
 CONFIGURATIONS = {
-    "threads-12-prefetch-4": "--pool threads --concurrency 12 --prefetch-multiplier 4",
     "threads-12-prefetch-1": "--pool threads --concurrency 12 --prefetch-multiplier 1",
+    "threads-12-prefetch-4": "--pool threads --concurrency 12 --prefetch-multiplier 4",
     "threads-12-prefetch-16": "--pool threads --concurrency 12 --prefetch-multiplier 16",
     "threads-4-prefetch-4": "--pool threads --concurrency 4 --prefetch-multiplier 4",
     "solo-prefetch-4": "--pool solo --prefetch-multiplier 4",
