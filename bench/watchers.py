@@ -43,7 +43,7 @@ from urllib.parse import urlsplit
 
 import orjson
 
-from bench import fleet, measure
+from bench import fleet, fleet_options, measure
 from bench.api import DispatchApi
 
 logger = logging.getLogger("bench")
@@ -301,7 +301,7 @@ async def _probe(
         await asyncio.sleep(PROBE_SECONDS)
 
 
-async def _run(options: fleet.Options, args: argparse.Namespace) -> dict[str, Any]:
+async def _run(options: fleet_options.Options, args: argparse.Namespace) -> dict[str, Any]:
     # A short snapshot (the database may hold the missions of earlier runs): what is measured are the changes.
     path = (
         "/events?kind=mission&mission.most_recent=1"
@@ -428,7 +428,7 @@ WATCHER_OPTIONS = {"watchers", "framing", "watcher_processes", "checked_watchers
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = fleet.build_parser()
+    parser = fleet_options.build_parser()
     parser.prog = "python -m bench.watchers"
     parser.add_argument("--watchers", type=int, default=10, help="concurrent watchers")
     parser.add_argument(
@@ -447,7 +447,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.checked_watchers is not None and args.checked_watchers < 1:
         parser.error("--checked-watchers: at least 1 (the others are compared with the checked ones)")
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    options = fleet.options_from(
+    options = fleet_options.options_from(
         argparse.Namespace(**{k: v for k, v in vars(args).items() if k not in WATCHER_OPTIONS}),
         args.robots,
     )

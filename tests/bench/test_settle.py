@@ -7,7 +7,8 @@ import subprocess
 import sys
 import uuid
 
-from bench.fleet import SETTLED_READINGS, Bench, Options
+from bench.fleet import SETTLED_READINGS, Bench
+from bench.fleet_options import Options
 
 
 def test_the_start_waits_until_the_servers_processes_are_quiet() -> None:
